@@ -1,0 +1,149 @@
+//! The damper models, and how to build one by name.
+
+pub mod bingham;
+pub mod direct_shear;
+pub mod spencer;
+pub mod two_chamber;
+
+use std::fmt;
+use std::str::FromStr;
+
+use serde::{Deserialize, Serialize};
+
+use crate::effects::EffectSet;
+use crate::model::DamperModel;
+
+pub use bingham::{BinghamDamper, BinghamParams};
+pub use direct_shear::{DirectShear, DirectShearParams};
+pub use spencer::{Spencer, SpencerParams};
+pub use two_chamber::{FluidLaw, FluidParams, TwoChamber, TwoChamberParams};
+
+/// The models mrtwin knows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ModelKind {
+    /// Bingham baseline F = f_c sgn v + c0 v + f0.
+    Bingham,
+    /// Spencer's modified Bouc–Wen.
+    Spencer,
+    /// Direct-shear Bodner–Partom gap of Skalski & Zalewski.
+    DirectShear,
+    /// Two-chamber flow-mode damper of Graczykowski & Pawłowski.
+    TwoChamber,
+}
+
+impl ModelKind {
+    /// Every model.
+    pub const ALL: [ModelKind; 4] = [
+        ModelKind::Bingham,
+        ModelKind::Spencer,
+        ModelKind::DirectShear,
+        ModelKind::TwoChamber,
+    ];
+
+    /// The name used on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            ModelKind::Bingham => "bingham",
+            ModelKind::Spencer => "spencer",
+            ModelKind::DirectShear => "direct-shear",
+            ModelKind::TwoChamber => "two-chamber",
+        }
+    }
+
+    /// The effects a model takes by default (two-chamber: the paper's model).
+    pub fn default_effects(self) -> EffectSet {
+        match self {
+            ModelKind::TwoChamber => EffectSet::paper(),
+            _ => EffectSet::NONE,
+        }
+    }
+}
+
+impl fmt::Display for ModelKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// An unknown model name.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct UnknownModel(pub String);
+
+impl fmt::Display for UnknownModel {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let names: Vec<_> = ModelKind::ALL.iter().map(|m| m.name()).collect();
+        write!(
+            f,
+            "unknown model '{}' (expected one of: {})",
+            self.0,
+            names.join(", ")
+        )
+    }
+}
+
+impl std::error::Error for UnknownModel {}
+
+impl FromStr for ModelKind {
+    type Err = UnknownModel;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        ModelKind::ALL
+            .into_iter()
+            .find(|m| m.name() == s.trim())
+            .ok_or_else(|| UnknownModel(s.trim().to_string()))
+    }
+}
+
+/// Parameters of every model, as one parameter-file section each.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields, default)]
+pub struct ModelParams {
+    /// `bingham`.
+    pub bingham: BinghamParams,
+    /// `spencer`.
+    pub spencer: SpencerParams,
+    /// `direct-shear`.
+    pub direct_shear: DirectShearParams,
+    /// `two-chamber`.
+    pub two_chamber: TwoChamberParams,
+}
+
+/// A model that does not take some of the effects asked for.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct UnsupportedEffects {
+    /// The model.
+    pub model: ModelKind,
+    /// The effects it cannot take.
+    pub effects: EffectSet,
+}
+
+impl fmt::Display for UnsupportedEffects {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "model '{}' has no switchable effects (asked for: {}); effects apply to two-chamber",
+            self.model, self.effects
+        )
+    }
+}
+
+impl std::error::Error for UnsupportedEffects {}
+
+/// Build a model. Only `two-chamber` takes effects; the others accept `none`.
+pub fn build(
+    kind: ModelKind,
+    params: &ModelParams,
+    effects: EffectSet,
+) -> Result<Box<dyn DamperModel>, UnsupportedEffects> {
+    if kind != ModelKind::TwoChamber && effects != EffectSet::NONE {
+        return Err(UnsupportedEffects {
+            model: kind,
+            effects,
+        });
+    }
+    Ok(match kind {
+        ModelKind::Bingham => Box::new(BinghamDamper::new(params.bingham.clone())),
+        ModelKind::Spencer => Box::new(Spencer::new(params.spencer.clone())),
+        ModelKind::DirectShear => Box::new(DirectShear::new(params.direct_shear.clone())),
+        ModelKind::TwoChamber => Box::new(TwoChamber::new(params.two_chamber.clone(), effects)),
+    })
+}
