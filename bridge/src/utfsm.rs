@@ -23,8 +23,8 @@
 //! with `DAQ Pause` (last sample of a level) and `DAQ Resume` (first sample of
 //! the next) in the Events column, while the sample number keeps counting (the
 //! NaN rows are most likely what the original MATLAB import made of those
-//! event rows). [`parse_raw`] splits on both: a `DAQ Pause`/`DAQ Resume` event
-//! or a row with a NaN channel ends a segment.
+//! event rows). [`parse_raw`] splits on both: a `DAQ Pause`/`DAQ Resume` event,
+//! a row with a NaN channel or a row whose sample number is NaN ends a segment.
 //!
 //! Scaling: force = V × 980.665 N, displacement = V × 10 mm. Channel order
 //! depends on the test frequency ([`ChannelLayout::for_frequency`]). The raw
@@ -719,17 +719,25 @@ mod tests {
         Sample Number, Date/Time, CHANNEL0, CHANNEL1, Events\r\n";
 
     /// A raw file with `per` samples per level, levels split by Pause/Resume
-    /// events (or NaN rows when `nan_rows`), force growing with the level.
+    /// events (or NaN rows when `nan_rows`: with a sample number before
+    /// levels 1 and 3, all NaN before levels 2 and 4), force growing with the
+    /// level.
     fn raw_text(per: usize, nan_rows: bool) -> String {
         let mut body = String::new();
-        let mut n = 0;
+        let (mut n, mut rows) = (0, 0);
         for level in 0..5 {
             if nan_rows && level > 0 {
-                n += 1;
-                body.push_str(&format!("{n:>10},   date, NaN, NaN\r\n"));
+                rows += 1;
+                if level % 2 == 1 {
+                    n += 1;
+                    body.push_str(&format!("{n:>10},   date, NaN, NaN\r\n"));
+                } else {
+                    body.push_str("NaN, NaN, NaN, NaN\r\n");
+                }
             }
             for i in 0..per {
                 n += 1;
+                rows += 1;
                 let force_v = 0.3 * (level + 1) as f64 * (i as f64).sin();
                 let disp_v = -3.0 + 0.1 * i as f64;
                 let event = match (i, nan_rows) {
@@ -743,7 +751,7 @@ mod tests {
                 ));
             }
         }
-        RAW_HEADER.replace("COUNT", &n.to_string()) + &body
+        RAW_HEADER.replace("COUNT", &rows.to_string()) + &body
     }
 
     #[test]

@@ -4,6 +4,8 @@ use std::io;
 
 use thiserror::Error;
 
+use crate::locate::SourceText;
+
 /// Everything that can go wrong while reading parameter files or ROS 2
 /// command-line arguments.
 ///
@@ -201,8 +203,14 @@ pub(crate) fn io_error(file: &str, source: io::Error) -> ConfigError {
     }
 }
 
-/// Builds [`ConfigError::Syntax`] from a YAML parser error.
-pub(crate) fn syntax_error(file: &str, err: &serde_norway::Error) -> ConfigError {
+/// Builds [`ConfigError::Syntax`] from a YAML parser error. For duplicate
+/// keys the parser points at the start of the mapping; the line of the
+/// duplicate itself is looked up in `source`.
+pub(crate) fn syntax_error(
+    file: &str,
+    err: &serde_norway::Error,
+    source: &SourceText<'_>,
+) -> ConfigError {
     let location = err.location();
     let mut message = err.to_string();
     // The parser appends " at line L column C" (possibly followed by a
@@ -213,10 +221,33 @@ pub(crate) fn syntax_error(file: &str, err: &serde_norway::Error) -> ConfigError
             message.replace_range(pos..pos + marker.len(), "");
         }
     }
+    let mut line = location.as_ref().map(|l| l.line());
+    if let (Some(loc), Some(key)) = (&location, duplicate_key(&message)) {
+        if let Some(duplicate) = source.duplicate_key_line(loc.line(), loc.column(), &key) {
+            line = Some(duplicate);
+        }
+    }
     ConfigError::Syntax {
         file: file.to_owned(),
-        line: location.as_ref().map(|l| l.line()),
+        line,
         column: location.as_ref().map(|l| l.column()),
         message,
     }
+}
+
+/// The key of a `duplicate entry with key "x"` message.
+fn duplicate_key(message: &str) -> Option<String> {
+    const MARKER: &str = "duplicate entry with key \"";
+    let start = message.find(MARKER)? + MARKER.len();
+    let quoted = &message[start..];
+    let mut key = String::new();
+    let mut chars = quoted.chars();
+    while let Some(c) = chars.next() {
+        match c {
+            '"' => return Some(key),
+            '\\' => key.push(chars.next()?),
+            other => key.push(other),
+        }
+    }
+    None
 }

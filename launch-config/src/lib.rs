@@ -180,7 +180,10 @@ enum Origin<'a> {
 }
 
 /// Deserializes `tree` into `T`, mapping errors back to their source.
-fn deserialize_tree<T: DeserializeOwned>(tree: Value, origins: &[Origin<'_>]) -> Result<T, ConfigError> {
+fn deserialize_tree<T: DeserializeOwned>(
+    tree: Value,
+    origins: &[Origin<'_>],
+) -> Result<T, ConfigError> {
     let err = match serde_path_to_error::deserialize::<_, T>(tree) {
         Ok(value) => return Ok(value),
         Err(err) => err,
@@ -272,3 +275,6 @@ fn resolve(origins: &[Origin<'_>], path: &[Seg]) -> (String, Option<usize>) {
         }
     }
 }
+
+#[cfg(test)]
+mod tests;

@@ -104,7 +104,41 @@ impl<'a> SourceText<'a> {
         find(&self.lines, path)
     }
 
+    /// The line of the second `key` entry of the block mapping that starts at
+    /// 1-based `line`/`column` (where the YAML parser reports a duplicate).
+    pub(crate) fn duplicate_key_line(
+        &self,
+        line: usize,
+        column: usize,
+        key: &str,
+    ) -> Option<usize> {
+        let indent = column.checked_sub(1)?;
+        let start = self.lines.iter().position(|l| l.no >= line)?;
+        let mut seen = false;
+        for (n, entry) in self.lines[start..].iter().enumerate() {
+            let text = if n == 0 && entry.no == line {
+                // The mapping may start mid-line, after `- `.
+                let offset = indent.checked_sub(entry.indent)?;
+                entry.text.get(offset..)?
+            } else if entry.indent < indent {
+                break;
+            } else if entry.indent == indent {
+                entry.text
+            } else {
+                continue;
+            };
+            if split_key(text).is_some_and(|(k, _)| k == key) {
+                if seen {
+                    return Some(entry.no);
+                }
+                seen = true;
+            }
+        }
+        None
+    }
+
     /// The line of `path` if the whole path is present.
+    #[cfg(test)]
     pub(crate) fn line_of(&self, path: &[Seg]) -> Option<usize> {
         match self.locate(path) {
             (depth, line) if depth == path.len() => line,
@@ -114,11 +148,15 @@ impl<'a> SourceText<'a> {
 }
 
 /// Searches `block` (the lines of one collection) for `path`.
+///
+/// Several entries may match the first segment (e.g. `a:` and a dotted
+/// `a.b:`); the first complete match wins, else the deepest partial one.
 fn find(block: &[Line<'_>], path: &[Seg]) -> (usize, Option<usize>) {
     let (Some(first), Some(seg)) = (block.first(), path.first()) else {
         return (0, None);
     };
     let indent = first.indent;
+    let mut best = (0, None);
     let mut seq_index = 0;
     let mut i = 0;
     while i < block.len() {
@@ -131,38 +169,42 @@ fn find(block: &[Line<'_>], path: &[Seg]) -> (usize, Option<usize>) {
             continue;
         }
         let end = entry_end(block, i);
-        match seg {
-            Seg::Key(_) => {
-                if let Some((key, _)) = split_key(line.text) {
-                    let consumed = key_match(&key, path);
-                    if consumed > 0 {
-                        let (depth, found) = find(&block[i + 1..end], &path[consumed..]);
-                        return (consumed + depth, found.or(Some(line.no)));
+        let candidate = match seg {
+            Seg::Key(_) => split_key(line.text).and_then(|(key, _)| {
+                let consumed = key_match(&key, path);
+                (consumed > 0).then(|| {
+                    let (depth, found) = find(&block[i + 1..end], &path[consumed..]);
+                    (consumed + depth, found.or(Some(line.no)))
+                })
+            }),
+            Seg::Index(wanted) => seq_item(line.text).and_then(|item| {
+                seq_index += 1;
+                (seq_index - 1 == *wanted).then(|| {
+                    let mut lines = Vec::with_capacity(end - i);
+                    if !item.is_empty() {
+                        lines.push(Line {
+                            no: line.no,
+                            indent: line.indent + (line.text.len() - item.len()),
+                            text: item,
+                        });
                     }
-                }
+                    lines.extend_from_slice(&block[i + 1..end]);
+                    let (depth, found) = find(&lines, &path[1..]);
+                    (1 + depth, found.or(Some(line.no)))
+                })
+            }),
+        };
+        if let Some(candidate) = candidate {
+            if candidate.0 == path.len() {
+                return candidate;
             }
-            Seg::Index(wanted) => {
-                if let Some(item) = seq_item(line.text) {
-                    if seq_index == *wanted {
-                        let mut lines = Vec::with_capacity(end - i);
-                        if !item.is_empty() {
-                            lines.push(Line {
-                                no: line.no,
-                                indent: line.indent + (line.text.len() - item.len()),
-                                text: item,
-                            });
-                        }
-                        lines.extend_from_slice(&block[i + 1..end]);
-                        let (depth, found) = find(&lines, &path[1..]);
-                        return (1 + depth, found.or(Some(line.no)));
-                    }
-                    seq_index += 1;
-                }
+            if candidate.0 > best.0 {
+                best = candidate;
             }
         }
         i = end;
     }
-    (0, None)
+    best
 }
 
 /// Index just past the entry starting at `block[start]`: its deeper-indented
@@ -359,7 +401,12 @@ mrtwin_stand:
         assert_eq!(line("valves/1/gain"), Some(17));
         assert_eq!(line("list/1"), Some(20));
         assert_eq!(line("limits/max_force_n"), Some(22));
-        assert_eq!(src.line_of(&path("/**/ros__parameters/model")), Some(25));
+        let wildcard = [
+            Seg::Key("/**".into()),
+            Seg::Key("ros__parameters".into()),
+            Seg::Key("model".into()),
+        ];
+        assert_eq!(src.line_of(&wildcard), Some(25));
     }
 
     #[test]
@@ -390,13 +437,25 @@ mrtwin_stand:
         assert_eq!(split_key("a: 1"), Some(("a".into(), " 1")));
         assert_eq!(split_key("a:"), Some(("a".into(), "")));
         assert_eq!(split_key("/**:"), Some(("/**".into(), "")));
-        assert_eq!(split_key("url: http://x"), Some(("url".into(), " http://x")));
+        assert_eq!(
+            split_key("url: http://x"),
+            Some(("url".into(), " http://x"))
+        );
         assert_eq!(split_key("a:b"), None);
         assert_eq!(split_key("x # a: b"), None);
         assert_eq!(split_key("'it''s': 1"), Some(("it's".into(), " 1")));
         assert_eq!(split_key("\"a\\\"b\" : 1"), Some(("a\"b".into(), " 1")));
         assert_eq!(split_key("\"unterminated: 1"), None);
         assert_eq!(split_key("{a: 1}"), None);
+    }
+
+    #[test]
+    fn duplicate_keys() {
+        let src = SourceText::new("a: 1\nb:\n  - x: 1\n    y: 2\n    x: 3\na: 2\n");
+        assert_eq!(src.duplicate_key_line(1, 1, "a"), Some(6));
+        assert_eq!(src.duplicate_key_line(3, 5, "x"), Some(5));
+        assert_eq!(src.duplicate_key_line(3, 5, "y"), None);
+        assert_eq!(src.duplicate_key_line(9, 1, "a"), None);
     }
 
     #[test]

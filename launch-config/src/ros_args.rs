@@ -205,7 +205,10 @@ mod tests {
     #[test]
     fn malformed_values() {
         let err = parse_ros_args(&args("--ros-args --params-file")).unwrap_err();
-        assert_eq!(err.to_string(), "ROS argument `--params-file` needs a value");
+        assert_eq!(
+            err.to_string(),
+            "ROS argument `--params-file` needs a value"
+        );
         let err = parse_ros_args(&args("-p model")).unwrap_err();
         assert_eq!(
             err.to_string(),

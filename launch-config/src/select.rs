@@ -61,7 +61,8 @@ pub(crate) fn select<'a>(
     node: &str,
 ) -> Result<Selection<'a>, ConfigError> {
     let source = SourceText::new(text);
-    let mut doc: Value = serde_norway::from_str(text).map_err(|e| syntax_error(name, &e))?;
+    let mut doc: Value =
+        serde_norway::from_str(text).map_err(|e| syntax_error(name, &e, &source))?;
     doc.apply_merge().map_err(|e| ConfigError::Structure {
         file: name.to_owned(),
         line: e.location().map(|l| l.line()),
@@ -303,7 +304,9 @@ pub(crate) fn expand_dotted(value: Value) -> Value {
             for (key, value) in map {
                 let value = expand_dotted(value);
                 let nested = match key.as_str() {
-                    Some(dotted) if dotted.contains('.') && !dotted.split('.').any(str::is_empty) => {
+                    Some(dotted)
+                        if dotted.contains('.') && !dotted.split('.').any(str::is_empty) =>
+                    {
                         dotted.rsplit('.').fold(value, |inner, part| {
                             let mut map = Mapping::new();
                             map.insert(Value::String(part.to_owned()), inner);
@@ -381,6 +384,9 @@ mod tests {
             panic!("no section");
         };
         assert_eq!(sel.tree, yaml("a: 1"));
-        assert_eq!(sel.origin.sections, vec![vec!["ns", "node", ROS_PARAMETERS]]);
+        assert_eq!(
+            sel.origin.sections,
+            vec![vec!["ns", "node", ROS_PARAMETERS]]
+        );
     }
 }
