@@ -178,7 +178,7 @@ pub fn upper_incomplete_gamma(a: f64, z: f64) -> f64 {
         d = 1.0 / d;
         let del = d * c;
         h *= del;
-        if (del - 1.0).abs() < 1.0e-13 {
+        if (del - 1.0).abs() < 1.0e-11 {
             break;
         }
     }

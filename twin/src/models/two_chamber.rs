@@ -184,7 +184,7 @@ impl Default for TwoChamberParams {
             field_time_constant_s: 0.010,
             heat_capacity_j_per_k: 300.0,
             heat_loss_w_per_k: 1.5,
-            max_substep_s: 2.5e-4,
+            max_substep_s: 1.0e-3,
         }
     }
 }
@@ -238,6 +238,10 @@ pub struct TwoChamber {
     current_eff: f64,
     temperature_c: f64,
     energy_j: f64,
+    /// Force and dissipated power at the end of the last (sub-)step.
+    last_force_power: (f64, f64),
+    /// The last sub-step switched between blocked and flowing: refine the next one.
+    refine_next: bool,
     prev: Option<DamperInput>,
 }
 
@@ -287,6 +291,8 @@ impl TwoChamber {
             current_eff: 0.0,
             temperature_c: 25.0,
             energy_j: 0.0,
+            last_force_power: (0.0, 0.0),
+            refine_next: false,
             prev: None,
         }
     }
@@ -381,17 +387,30 @@ impl TwoChamber {
 
     fn solve_pressures(&mut self, from: &DamperInput, to: &DamperInput, h: f64, flow: SlitFlow) {
         if self.effects.has(Effect::FluidCompressibility) {
-            let sys = Chambers {
-                m: self,
-                flow,
-                from: *from,
-                to: *to,
+            // Around a switch between blocked and flowing, the chamber pressures relax on
+            // the fast time constant V/(K dQ/dΔp): the sub-step holding the switch and the
+            // one after it are cut into `REFINE` parts.
+            const REFINE: usize = 8;
+            let y0 = Vector::<2>::new(self.p1, self.p2);
+            let dpy = flow.yield_pressure();
+            let flowing = |y: &Vector<2>| (y[0] - y[1]).abs() > dpy;
+            let uniform = |m: &Self| {
+                (0..REFINE).fold(y0, |y, k| {
+                    let a = from.lerp(to, k as f64 / REFINE as f64);
+                    let b = from.lerp(to, (k + 1) as f64 / REFINE as f64);
+                    m.integrate_chambers(&y, &a, &b, h / REFINE as f64, &flow)
+                })
             };
-            let tol = Tolerance {
-                atol: Vector::<2>::new(1.0, 1.0),
-                rtol: 1e-9,
+            let mut y = if self.refine_next {
+                uniform(self)
+            } else {
+                self.integrate_chambers(&y0, from, to, h, &flow)
             };
-            let y = trbdf2_adaptive(&sys, &Vector::<2>::new(self.p1, self.p2), 0.0, 1.0, h, &tol);
+            let switched = dpy > 0.0 && flowing(&y0) != flowing(&y);
+            if switched && !self.refine_next {
+                y = uniform(self);
+            }
+            self.refine_next = switched;
             self.p1 = y[0];
             self.p2 = y[1];
         } else {
@@ -401,8 +420,42 @@ impl TwoChamber {
         }
     }
 
-    fn output(&self, inp: &DamperInput) -> DamperOutput {
-        let (force_n, dissipated_power_w) = self.force_and_power(inp, &self.flow());
+    /// One TR-BDF2 step of the chamber pressures. Where the flow opens or blocks within the
+    /// step (|Δp| crosses Δp_y, a kink in Q(Δp)), the step is halved recursively down to
+    /// `MIN_SUBSTEP_S`, so the kink is resolved finely while smooth stretches take long
+    /// steps.
+    fn integrate_chambers(
+        &self,
+        y0: &Vector<2>,
+        from: &DamperInput,
+        to: &DamperInput,
+        h: f64,
+        flow: &SlitFlow,
+    ) -> Vector<2> {
+        const MIN_SUBSTEP_S: f64 = 2.0e-5;
+        let sys = Chambers {
+            m: self,
+            flow: *flow,
+            from: *from,
+            to: *to,
+        };
+        let tol = Tolerance {
+            atol: Vector::<2>::new(1.0, 1.0),
+            rtol: 1e-9,
+        };
+        let y1 = trbdf2_adaptive(&sys, y0, 0.0, 1.0, h, &tol);
+        let dpy = flow.yield_pressure();
+        let flowing = |y: &Vector<2>| (y[0] - y[1]).abs() > dpy;
+        if dpy > 0.0 && flowing(y0) != flowing(&y1) && h > 2.0 * MIN_SUBSTEP_S {
+            let mid = from.lerp(to, 0.5);
+            let ym = self.integrate_chambers(y0, from, &mid, 0.5 * h, flow);
+            return self.integrate_chambers(&ym, &mid, to, 0.5 * h, flow);
+        }
+        y1
+    }
+
+    fn output(&self) -> DamperOutput {
+        let (force_n, dissipated_power_w) = self.last_force_power;
         DamperOutput {
             force_n,
             dissipated_power_w,
@@ -422,6 +475,7 @@ impl DamperModel for TwoChamber {
         self.current_eff = input.current_a;
         self.temperature_c = input.ambient_temperature_c;
         self.energy_j = 0.0;
+        self.refine_next = false;
         if self.effects.has(Effect::FluidCompressibility) {
             let p0 = self.gas_pressure_at_rest();
             self.p1 = p0;
@@ -430,17 +484,18 @@ impl DamperModel for TwoChamber {
             let flow = self.flow();
             self.solve_pressures(input, input, 0.0, flow);
         }
+        self.last_force_power = self.force_and_power(input, &self.flow());
         self.prev = Some(*input);
     }
 
     fn step(&mut self, input: &DamperInput, dt: f64) -> DamperOutput {
         let Some(prev) = self.prev else {
             self.reset(input);
-            return self.output(input);
+            return self.output();
         };
         let n = ((dt / self.params.max_substep_s).ceil() as usize).max(1);
         let h = dt / n as f64;
-        let mut power0 = self.force_and_power(&prev, &self.flow()).1;
+        let mut power0 = self.last_force_power.1;
         for k in 0..n {
             let from = prev.lerp(input, k as f64 / n as f64);
             let to = prev.lerp(input, (k + 1) as f64 / n as f64);
@@ -453,7 +508,8 @@ impl DamperModel for TwoChamber {
             };
             let flow = self.flow();
             self.solve_pressures(&from, &to, h, flow);
-            let power1 = self.force_and_power(&to, &flow).1;
+            self.last_force_power = self.force_and_power(&to, &flow);
+            let power1 = self.last_force_power.1;
             let mean_power = 0.5 * (power0 + power1);
             self.energy_j += h * mean_power;
             if self.effects.has(Effect::ThermalSoftening) {
@@ -466,6 +522,6 @@ impl DamperModel for TwoChamber {
             power0 = power1;
         }
         self.prev = Some(*input);
-        self.output(input)
+        self.output()
     }
 }
