@@ -1,0 +1,283 @@
+//! Analytic limits, energy balance, the z-shaped loop and step-size convergence of the
+//! damper models.
+
+use twin::metrics::{loop_work, zero_force_velocity_gap};
+use twin::models::{
+    BinghamDamper, BinghamParams, DirectShear, DirectShearParams, FluidLaw, Spencer,
+    SpencerParams, TwoChamber, TwoChamberParams,
+};
+use twin::stand::{run, Programme, SimulatedSample};
+use twin::{DamperInput, DamperModel, Effect, EffectSet};
+
+fn programme(amplitude: f64, freq: f64, current: f64, duration: f64, rate: f64) -> Programme {
+    Programme::grid(amplitude, &[freq], &[current], duration, rate)
+}
+
+/// Samples of the last whole cycle of a run (the steady loop).
+fn last_cycle(samples: &[SimulatedSample], freq: f64) -> &[SimulatedSample] {
+    let t_end = samples.last().unwrap().time_s;
+    let start = samples
+        .iter()
+        .position(|s| s.time_s >= t_end - 1.0 / freq)
+        .unwrap();
+    &samples[start.saturating_sub(1)..]
+}
+
+fn peak(samples: &[SimulatedSample]) -> f64 {
+    samples.iter().map(|s| s.output.force_n.abs()).fold(0.0, f64::max)
+}
+
+/// Incompressible Bingham flow-mode damper, written out independently of the model:
+/// Q = A1 v through a Buckingham–Reiner slit, solved for Δp by bisection on
+/// Q = G Δp (1 − 3δ/2 + δ³/2), plus the gas pressure p0 (Vg0/(Vg0 + Ar x))^κ on the rod.
+fn incompressible_bingham_force(p: &TwoChamberParams, x: f64, v: f64, i: f64) -> f64 {
+    let a1 = p.annulus_area();
+    let ar = p.rod_area();
+    let tau_y = p.fluid.yield_stress_pa[0] + p.fluid.yield_stress_pa[1] * i + p.fluid.yield_stress_pa[2] * i * i;
+    let mu = p.fluid.viscosity_pa_s[0] + p.fluid.viscosity_pa_s[1] * i + p.fluid.viscosity_pa_s[2] * i * i;
+    let b = 2.0 * std::f64::consts::PI * p.gap_mean_radius_m;
+    let (h, l) = (p.gap_height_m, p.gap_active_length_m);
+    let g = b * h.powi(3) / (12.0 * mu * l);
+    let dpy = 2.0 * tau_y * l / h;
+    let q = (a1 * v).abs();
+    let flow = |dp: f64| {
+        let d = dpy / dp;
+        g * dp * (1.0 - 1.5 * d + 0.5 * d * d * d)
+    };
+    // Q ≥ G (Δp − 1.5 Δp_y), so Q(2Δp_y + 2q/G) > q brackets the root.
+    let (mut lo, mut hi) = (dpy, 2.0 * dpy + 2.0 * q / g + 1.0);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if flow(mid) < q {
+            lo = mid
+        } else {
+            hi = mid
+        }
+    }
+    let dp = if q == 0.0 { 0.0 } else { v.signum() * 0.5 * (lo + hi) };
+    let p2 = p.gas_preload_pa * (p.gas_volume_m3 / (p.gas_volume_m3 + ar * x)).powf(p.polytropic_index);
+    a1 * dp - ar * p2
+}
+
+#[test]
+fn incompressible_model_is_the_analytic_bingham_damper() {
+    let params = TwoChamberParams::default();
+    let effects = EffectSet::NONE.with(Effect::GasSpring);
+    let mut m = TwoChamber::new(params.clone(), effects);
+    let s = run(&mut m, &programme(0.01, 3.33, 1.0, 0.6, 1000.0), None);
+    let pk = peak(&s);
+    for smp in &s {
+        let analytic = incompressible_bingham_force(&params, smp.input.displacement_m, smp.input.velocity_m_s, 1.0);
+        assert!(
+            (smp.output.force_n - analytic).abs() < 1e-6 * pk,
+            "t={} {} vs {analytic}",
+            smp.time_s,
+            smp.output.force_n
+        );
+    }
+}
+
+#[test]
+fn infinite_bulk_modulus_recovers_the_incompressible_damper() {
+    let prog = programme(0.01, 3.33, 1.0, 0.9, 1000.0);
+    let mut stiff_params = TwoChamberParams::default();
+    stiff_params.bulk_modulus_pa = 1.0e13;
+    let mut compressible = TwoChamber::new(stiff_params.clone(), EffectSet::paper());
+    let mut incompressible = TwoChamber::new(stiff_params, EffectSet::NONE.with(Effect::GasSpring));
+    let a = run(&mut compressible, &prog, None);
+    let b = run(&mut incompressible, &prog, None);
+    let pk = peak(&b);
+    // Away from the force jump at v = 0 (where the incompressible Bingham force is
+    // discontinuous), the two agree closely; in RMS over the whole record too.
+    let mut sq = 0.0;
+    for (x, y) in a.iter().zip(&b).skip(100) {
+        let d = x.output.force_n - y.output.force_n;
+        sq += d * d;
+        if x.input.velocity_m_s.abs() > 0.02 {
+            assert!(d.abs() < 5e-3 * pk, "t={}: {} vs {}", x.time_s, x.output.force_n, y.output.force_n);
+        }
+    }
+    let rms = (sq / (a.len() - 100) as f64).sqrt();
+    assert!(rms < 0.02 * pk, "rms {rms} of peak {pk}");
+}
+
+#[test]
+fn blocked_flow_is_a_spring_of_stiffness_k_a1_squared_over_v1() {
+    // A yield stress far above anything the stroke can reach blocks the gap.
+    let mut p = TwoChamberParams::default();
+    p.fluid.yield_stress_pa = [1.0e9, 0.0, 0.0];
+    let mut m = TwoChamber::new(p.clone(), EffectSet::paper());
+    let s = run(&mut m, &programme(1.0e-4, 2.0, 0.0, 0.5, 2000.0), None);
+    // Least-squares slope of F against x.
+    let n = s.len() as f64;
+    let (sx, sf) = s.iter().fold((0.0, 0.0), |a, s| (a.0 + s.input.displacement_m, a.1 + s.output.force_n));
+    let (mx, mf) = (sx / n, sf / n);
+    let (sxx, sxf) = s.iter().fold((0.0, 0.0), |a, s| {
+        let dx = s.input.displacement_m - mx;
+        (a.0 + dx * dx, a.1 + dx * (s.output.force_n - mf))
+    });
+    let k_fit = sxf / sxx;
+    let a1 = p.annulus_area();
+    let ap = p.piston_area();
+    let k_chamber1 = p.bulk_modulus_pa * a1 * a1 / p.chamber1_volume_m3;
+    // Chamber 2 (fluid and gas compliances in series, C2 = V2/K + Vg/(κ p0)) pushes on the
+    // other face of the piston: its stiffness Ap²/C2 adds to chamber 1's.
+    let c2 = p.chamber2_volume_m3 / p.bulk_modulus_pa + p.gas_volume_m3 / (p.polytropic_index * p.gas_preload_pa);
+    let k_expected = k_chamber1 + ap * ap / c2;
+    assert!((k_fit / k_expected - 1.0).abs() < 0.01, "fit {k_fit}, expected {k_expected}");
+    assert!((k_fit / k_chamber1 - 1.0).abs() < 0.03, "fit {k_fit} vs K A1²/V1 {k_chamber1}");
+}
+
+#[test]
+fn static_force_with_the_gas_spring_is_minus_p0_ar() {
+    let p = TwoChamberParams::default();
+    let expected = -p.gas_preload_pa * p.rod_area();
+    for effects in [EffectSet::paper(), EffectSet::NONE.with(Effect::GasSpring)] {
+        let mut m = TwoChamber::new(p.clone(), effects);
+        let rest = DamperInput {
+            current_a: 1.0,
+            ambient_temperature_c: 25.0,
+            ..Default::default()
+        };
+        let mut f = m.step(&rest, 0.0).force_n;
+        for _ in 0..100 {
+            f = m.step(&rest, 1e-3).force_n;
+        }
+        assert!((f - expected).abs() < 1e-9 * expected.abs(), "{effects}: {f} vs {expected}");
+    }
+    // Without the gas spring there is no static force.
+    let mut m = TwoChamber::new(p, EffectSet::NONE.with(Effect::FluidCompressibility));
+    let rest = DamperInput::default();
+    assert_eq!(m.step(&rest, 0.0).force_n, 0.0);
+}
+
+fn assert_energy_balance(model: &mut dyn DamperModel, freq: f64, tol: f64) {
+    let s = run(model, &programme(0.01, freq, 1.0, 3.0 / freq, 4000.0), None);
+    let cyc = last_cycle(&s, freq);
+    let x: Vec<f64> = cyc.iter().map(|s| s.input.displacement_m).collect();
+    let f: Vec<f64> = cyc.iter().map(|s| s.output.force_n).collect();
+    let work = loop_work(&x, &f);
+    let dissipated = cyc.last().unwrap().output.dissipated_energy_j - cyc[0].output.dissipated_energy_j;
+    assert!(work > 0.0, "{}: loop work {work}", model.id());
+    assert!(
+        (work / dissipated - 1.0).abs() < tol,
+        "{}: loop area {work} J vs dissipated {dissipated} J",
+        model.id()
+    );
+}
+
+#[test]
+fn energy_dissipated_per_cycle_equals_the_loop_area() {
+    let mut no_heat = EffectSet::all().without(Effect::ThermalSoftening);
+    assert_energy_balance(&mut TwoChamber::new(TwoChamberParams::default(), EffectSet::paper()), 3.33, 0.01);
+    assert_energy_balance(&mut TwoChamber::new(TwoChamberParams::default(), no_heat), 3.33, 0.01);
+    let mut bp = TwoChamberParams::default();
+    bp.fluid.law = FluidLaw::BodnerPartom;
+    bp.gap_active_length_m = 0.004;
+    no_heat = no_heat.without(Effect::FieldLag);
+    assert_energy_balance(&mut TwoChamber::new(bp, no_heat), 3.33, 0.01);
+    assert_energy_balance(&mut DirectShear::new(DirectShearParams::default()), 3.33, 0.01);
+    assert_energy_balance(&mut Spencer::new(SpencerParams::default()), 3.33, 0.01);
+    assert_energy_balance(&mut BinghamDamper::new(BinghamParams::default()), 3.33, 0.01);
+}
+
+fn z_opening(bulk_modulus: f64) -> f64 {
+    let mut p = TwoChamberParams::default();
+    p.bulk_modulus_pa = bulk_modulus;
+    let mut m = TwoChamber::new(p, EffectSet::paper());
+    let s = run(&mut m, &programme(0.01, 5.0, 1.0, 0.6, 10_000.0), None);
+    let cyc = last_cycle(&s, 5.0);
+    let v: Vec<f64> = cyc.iter().map(|s| s.input.velocity_m_s).collect();
+    let f: Vec<f64> = cyc.iter().map(|s| s.output.force_n).collect();
+    zero_force_velocity_gap(&v, &f)
+}
+
+#[test]
+fn z_shaped_loop_opens_with_compressibility_and_closes_as_k_grows() {
+    let openings: Vec<f64> = [5.0e8, 5.0e9, 5.0e10, 5.0e12].iter().map(|&k| z_opening(k)).collect();
+    assert!(openings[0] > 0.1, "paper's model: {openings:?}");
+    assert!(openings.windows(2).all(|w| w[1] < w[0]), "not monotone: {openings:?}");
+    assert!(openings[3] < 0.01, "K → ∞: {openings:?}");
+    // The incompressible damper's loop has no opening at all (to the sampling's resolution).
+    let mut m = TwoChamber::new(TwoChamberParams::default(), EffectSet::NONE.with(Effect::GasSpring));
+    let s = run(&mut m, &programme(0.01, 5.0, 1.0, 0.6, 10_000.0), None);
+    let cyc = last_cycle(&s, 5.0);
+    let v: Vec<f64> = cyc.iter().map(|s| s.input.velocity_m_s).collect();
+    let f: Vec<f64> = cyc.iter().map(|s| s.output.force_n).collect();
+    assert!(zero_force_velocity_gap(&v, &f) < 0.005);
+}
+
+/// Run a model with internal step `h` at `rate`, and with `h/2` at twice the rate, and
+/// return the largest force difference at common instants (after the start-up
+/// transient) as a fraction of the peak force.
+fn halving_change(make: &dyn Fn(f64) -> Box<dyn DamperModel>, h: f64, rate: f64, current: f64) -> f64 {
+    let coarse = run(make(h).as_mut(), &programme(0.01, 5.0, current, 0.6, rate), None);
+    let fine = run(make(0.5 * h).as_mut(), &programme(0.01, 5.0, current, 0.6, 2.0 * rate), None);
+    let pk = peak(&fine);
+    coarse
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| s.time_s > 0.05)
+        .map(|(k, s)| (s.output.force_n - fine[2 * k].output.force_n).abs())
+        .fold(0.0, f64::max)
+        / pk
+}
+
+#[test]
+fn halving_the_step_changes_the_force_by_less_than_a_thousandth_of_its_peak() {
+    type Maker = Box<dyn Fn(f64) -> Box<dyn DamperModel>>;
+    let two_chamber = |effects: EffectSet, law: FluidLaw| -> Maker {
+        Box::new(move |h| {
+            let mut p = TwoChamberParams::default();
+            p.max_substep_s = h;
+            p.fluid.law = law;
+            if law == FluidLaw::BodnerPartom {
+                p.gap_active_length_m = 0.004;
+            }
+            Box::new(TwoChamber::new(p, effects))
+        })
+    };
+    let cases: Vec<(&str, Maker)> = vec![
+        ("two-chamber paper", two_chamber(EffectSet::paper(), FluidLaw::Bingham)),
+        ("two-chamber all", two_chamber(EffectSet::all(), FluidLaw::Bingham)),
+        ("two-chamber HB all", two_chamber(EffectSet::all(), FluidLaw::HerschelBulkley)),
+        ("two-chamber BP all", two_chamber(EffectSet::all(), FluidLaw::BodnerPartom)),
+        ("two-chamber none", two_chamber(EffectSet::NONE, FluidLaw::Bingham)),
+        (
+            "direct-shear",
+            Box::new(|h| {
+                let p = DirectShearParams {
+                    max_substep_s: h,
+                    ..Default::default()
+                };
+                Box::new(DirectShear::new(p)) as Box<dyn DamperModel>
+            }),
+        ),
+        (
+            "spencer",
+            Box::new(|h| {
+                let p = SpencerParams {
+                    max_substep_s: h,
+                    ..Default::default()
+                };
+                Box::new(Spencer::new(p)) as Box<dyn DamperModel>
+            }),
+        ),
+        ("bingham", Box::new(|_| Box::new(BinghamDamper::new(BinghamParams::default())) as Box<dyn DamperModel>)),
+    ];
+    let mut report = Vec::new();
+    // Each model at its default internal step (two-chamber 1 ms, direct-shear and
+    // Spencer 0.25 ms), sampled at 1 kHz, against half that step at 2 kHz.
+    let default_step = |name: &str| match name {
+        "direct-shear" => DirectShearParams::default().max_substep_s,
+        "spencer" => SpencerParams::default().max_substep_s,
+        _ => TwoChamberParams::default().max_substep_s,
+    };
+    for (name, make) in &cases {
+        let h = default_step(name);
+        let change = halving_change(make.as_ref(), h, 1000.0, 1.0);
+        report.push(format!("{name}: {change:.2e}"));
+        assert!(change < 1e-3, "{name}: halving {h} s changes F by {change:.2e} of peak\n{report:?}");
+    }
+    eprintln!("{report:#?}");
+}
