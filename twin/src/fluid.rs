@@ -41,7 +41,8 @@ impl HerschelBulkley {
     /// Shear stress at a given shear rate (sgn(0) = 0).
     pub fn shear_stress(&self, shear_rate: f64) -> f64 {
         signum0(shear_rate)
-            * (self.yield_stress_pa + self.consistency_pa_sm * shear_rate.abs().powf(self.flow_index))
+            * (self.yield_stress_pa
+                + self.consistency_pa_sm * shear_rate.abs().powf(self.flow_index))
     }
 }
 
@@ -206,7 +207,10 @@ mod tests {
         for rate in [1e-3, 1.0, 73.0, 144.0, 217.0, 1e4] {
             let tau = bp.yield_point(rate);
             let back = bp.plastic_rate(tau);
-            assert!((back / rate - 1.0).abs() < 1e-10, "{rate} -> {tau} -> {back}");
+            assert!(
+                (back / rate - 1.0).abs() < 1e-10,
+                "{rate} -> {tau} -> {back}"
+            );
         }
     }
 
@@ -235,7 +239,10 @@ mod tests {
             }
             let quad = s * h / 3.0;
             let cf = upper_incomplete_gamma(a, z);
-            assert!((cf / quad - 1.0).abs() < 1e-8, "a={a} z={z}: {cf} vs {quad}");
+            assert!(
+                (cf / quad - 1.0).abs() < 1e-8,
+                "a={a} z={z}: {cf} vs {quad}"
+            );
         }
     }
 

@@ -202,8 +202,14 @@ mod tests {
         for dp in [-5e6, -1.2e6, 0.0, 5e5, 1.01e6, 3e6] {
             let (qb, db) = b.flow(dp);
             let (qh, dh) = hb.flow(dp);
-            assert!((qb - qh).abs() <= 1e-9 * qb.abs().max(1e-12), "{dp}: {qb} {qh}");
-            assert!((db - dh).abs() <= 1e-6 * db.abs().max(1e-20), "{dp}: {db} {dh}");
+            assert!(
+                (qb - qh).abs() <= 1e-9 * qb.abs().max(1e-12),
+                "{dp}: {qb} {qh}"
+            );
+            assert!(
+                (db - dh).abs() <= 1e-6 * db.abs().max(1e-20),
+                "{dp}: {db} {dh}"
+            );
         }
     }
 

@@ -21,7 +21,10 @@ pub fn loop_work(displacement_m: &[f64], force_n: &[f64]) -> f64 {
 pub fn zero_force_velocity_gap(velocity_m_s: &[f64], force_n: &[f64]) -> f64 {
     let fmax = force_n.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
     let fmin = force_n.iter().cloned().fold(f64::INFINITY, f64::min);
-    let vmax = velocity_m_s.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+    let vmax = velocity_m_s
+        .iter()
+        .cloned()
+        .fold(f64::NEG_INFINITY, f64::max);
     let vmin = velocity_m_s.iter().cloned().fold(f64::INFINITY, f64::min);
     let mid = 0.5 * (fmax + fmin);
     let (mut rise, mut nr, mut fall, mut nf) = (0.0, 0, 0.0, 0);
@@ -59,6 +62,8 @@ mod tests {
         let f: Vec<f64> = t.iter().map(|t| c * a * w * (w * t).cos()).collect();
         let expected = std::f64::consts::PI * c * w * a * a;
         assert!((loop_work(&x, &f) / expected - 1.0).abs() < 1e-5);
-        assert!(zero_force_velocity_gap(&f.iter().map(|f| f / c).collect::<Vec<_>>(), &f).abs() < 1e-9);
+        assert!(
+            zero_force_velocity_gap(&f.iter().map(|f| f / c).collect::<Vec<_>>(), &f).abs() < 1e-9
+        );
     }
 }

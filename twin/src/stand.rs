@@ -126,7 +126,11 @@ pub struct Noise {
 }
 
 /// Drive `model` through the programme, reset at the first sample.
-pub fn run(model: &mut dyn DamperModel, programme: &Programme, noise: Option<Noise>) -> Vec<SimulatedSample> {
+pub fn run(
+    model: &mut dyn DamperModel,
+    programme: &Programme,
+    noise: Option<Noise>,
+) -> Vec<SimulatedSample> {
     let n = programme.sample_count();
     let dt = 1.0 / programme.rate_hz;
     let mut out = Vec::with_capacity(n);
@@ -147,7 +151,10 @@ pub fn run(model: &mut dyn DamperModel, programme: &Programme, noise: Option<Noi
         });
     }
     if let Some(noise) = noise.filter(|n| n.fraction > 0.0) {
-        let peak = out.iter().map(|s| s.output.force_n.abs()).fold(0.0, f64::max);
+        let peak = out
+            .iter()
+            .map(|s| s.output.force_n.abs())
+            .fold(0.0, f64::max);
         let sigma = noise.fraction * peak;
         if let Ok(normal) = Normal::new(0.0, sigma) {
             let mut rng = rand::rngs::StdRng::seed_from_u64(noise.seed);

@@ -3,8 +3,8 @@
 
 use twin::metrics::{loop_work, zero_force_velocity_gap};
 use twin::models::{
-    BinghamDamper, BinghamParams, DirectShear, DirectShearParams, FluidLaw, Spencer,
-    SpencerParams, TwoChamber, TwoChamberParams,
+    BinghamDamper, BinghamParams, DirectShear, DirectShearParams, FluidLaw, Spencer, SpencerParams,
+    TwoChamber, TwoChamberParams,
 };
 use twin::stand::{run, Programme, SimulatedSample};
 use twin::{DamperInput, DamperModel, Effect, EffectSet};
@@ -24,7 +24,10 @@ fn last_cycle(samples: &[SimulatedSample], freq: f64) -> &[SimulatedSample] {
 }
 
 fn peak(samples: &[SimulatedSample]) -> f64 {
-    samples.iter().map(|s| s.output.force_n.abs()).fold(0.0, f64::max)
+    samples
+        .iter()
+        .map(|s| s.output.force_n.abs())
+        .fold(0.0, f64::max)
 }
 
 /// Incompressible Bingham flow-mode damper, written out independently of the model:
@@ -33,8 +36,12 @@ fn peak(samples: &[SimulatedSample]) -> f64 {
 fn incompressible_bingham_force(p: &TwoChamberParams, x: f64, v: f64, i: f64) -> f64 {
     let a1 = p.annulus_area();
     let ar = p.rod_area();
-    let tau_y = p.fluid.yield_stress_pa[0] + p.fluid.yield_stress_pa[1] * i + p.fluid.yield_stress_pa[2] * i * i;
-    let mu = p.fluid.viscosity_pa_s[0] + p.fluid.viscosity_pa_s[1] * i + p.fluid.viscosity_pa_s[2] * i * i;
+    let tau_y = p.fluid.yield_stress_pa[0]
+        + p.fluid.yield_stress_pa[1] * i
+        + p.fluid.yield_stress_pa[2] * i * i;
+    let mu = p.fluid.viscosity_pa_s[0]
+        + p.fluid.viscosity_pa_s[1] * i
+        + p.fluid.viscosity_pa_s[2] * i * i;
     let b = 2.0 * std::f64::consts::PI * p.gap_mean_radius_m;
     let (h, l) = (p.gap_height_m, p.gap_active_length_m);
     let g = b * h.powi(3) / (12.0 * mu * l);
@@ -54,8 +61,13 @@ fn incompressible_bingham_force(p: &TwoChamberParams, x: f64, v: f64, i: f64) ->
             hi = mid
         }
     }
-    let dp = if q == 0.0 { 0.0 } else { v.signum() * 0.5 * (lo + hi) };
-    let p2 = p.gas_preload_pa * (p.gas_volume_m3 / (p.gas_volume_m3 + ar * x)).powf(p.polytropic_index);
+    let dp = if q == 0.0 {
+        0.0
+    } else {
+        v.signum() * 0.5 * (lo + hi)
+    };
+    let p2 =
+        p.gas_preload_pa * (p.gas_volume_m3 / (p.gas_volume_m3 + ar * x)).powf(p.polytropic_index);
     a1 * dp - ar * p2
 }
 
@@ -67,7 +79,12 @@ fn incompressible_model_is_the_analytic_bingham_damper() {
     let s = run(&mut m, &programme(0.01, 3.33, 1.0, 0.6, 1000.0), None);
     let pk = peak(&s);
     for smp in &s {
-        let analytic = incompressible_bingham_force(&params, smp.input.displacement_m, smp.input.velocity_m_s, 1.0);
+        let analytic = incompressible_bingham_force(
+            &params,
+            smp.input.displacement_m,
+            smp.input.velocity_m_s,
+            1.0,
+        );
         assert!(
             (smp.output.force_n - analytic).abs() < 1e-6 * pk,
             "t={} {} vs {analytic}",
@@ -94,7 +111,13 @@ fn infinite_bulk_modulus_recovers_the_incompressible_damper() {
         let d = x.output.force_n - y.output.force_n;
         sq += d * d;
         if x.input.velocity_m_s.abs() > 0.02 {
-            assert!(d.abs() < 5e-3 * pk, "t={}: {} vs {}", x.time_s, x.output.force_n, y.output.force_n);
+            assert!(
+                d.abs() < 5e-3 * pk,
+                "t={}: {} vs {}",
+                x.time_s,
+                x.output.force_n,
+                y.output.force_n
+            );
         }
     }
     let rms = (sq / (a.len() - 100) as f64).sqrt();
@@ -110,7 +133,9 @@ fn blocked_flow_is_a_spring_of_stiffness_k_a1_squared_over_v1() {
     let s = run(&mut m, &programme(1.0e-4, 2.0, 0.0, 0.5, 2000.0), None);
     // Least-squares slope of F against x.
     let n = s.len() as f64;
-    let (sx, sf) = s.iter().fold((0.0, 0.0), |a, s| (a.0 + s.input.displacement_m, a.1 + s.output.force_n));
+    let (sx, sf) = s.iter().fold((0.0, 0.0), |a, s| {
+        (a.0 + s.input.displacement_m, a.1 + s.output.force_n)
+    });
     let (mx, mf) = (sx / n, sf / n);
     let (sxx, sxf) = s.iter().fold((0.0, 0.0), |a, s| {
         let dx = s.input.displacement_m - mx;
@@ -122,10 +147,17 @@ fn blocked_flow_is_a_spring_of_stiffness_k_a1_squared_over_v1() {
     let k_chamber1 = p.bulk_modulus_pa * a1 * a1 / p.chamber1_volume_m3;
     // Chamber 2 (fluid and gas compliances in series, C2 = V2/K + Vg/(κ p0)) pushes on the
     // other face of the piston: its stiffness Ap²/C2 adds to chamber 1's.
-    let c2 = p.chamber2_volume_m3 / p.bulk_modulus_pa + p.gas_volume_m3 / (p.polytropic_index * p.gas_preload_pa);
+    let c2 = p.chamber2_volume_m3 / p.bulk_modulus_pa
+        + p.gas_volume_m3 / (p.polytropic_index * p.gas_preload_pa);
     let k_expected = k_chamber1 + ap * ap / c2;
-    assert!((k_fit / k_expected - 1.0).abs() < 0.01, "fit {k_fit}, expected {k_expected}");
-    assert!((k_fit / k_chamber1 - 1.0).abs() < 0.03, "fit {k_fit} vs K A1²/V1 {k_chamber1}");
+    assert!(
+        (k_fit / k_expected - 1.0).abs() < 0.01,
+        "fit {k_fit}, expected {k_expected}"
+    );
+    assert!(
+        (k_fit / k_chamber1 - 1.0).abs() < 0.03,
+        "fit {k_fit} vs K A1²/V1 {k_chamber1}"
+    );
 }
 
 #[test]
@@ -143,7 +175,10 @@ fn static_force_with_the_gas_spring_is_minus_p0_ar() {
         for _ in 0..100 {
             f = m.step(&rest, 1e-3).force_n;
         }
-        assert!((f - expected).abs() < 1e-9 * expected.abs(), "{effects}: {f} vs {expected}");
+        assert!(
+            (f - expected).abs() < 1e-9 * expected.abs(),
+            "{effects}: {f} vs {expected}"
+        );
     }
     // Without the gas spring there is no static force.
     let mut m = TwoChamber::new(p, EffectSet::NONE.with(Effect::FluidCompressibility));
@@ -157,7 +192,8 @@ fn assert_energy_balance(model: &mut dyn DamperModel, freq: f64, tol: f64) {
     let x: Vec<f64> = cyc.iter().map(|s| s.input.displacement_m).collect();
     let f: Vec<f64> = cyc.iter().map(|s| s.output.force_n).collect();
     let work = loop_work(&x, &f);
-    let dissipated = cyc.last().unwrap().output.dissipated_energy_j - cyc[0].output.dissipated_energy_j;
+    let dissipated =
+        cyc.last().unwrap().output.dissipated_energy_j - cyc[0].output.dissipated_energy_j;
     assert!(work > 0.0, "{}: loop work {work}", model.id());
     assert!(
         (work / dissipated - 1.0).abs() < tol,
@@ -169,16 +205,32 @@ fn assert_energy_balance(model: &mut dyn DamperModel, freq: f64, tol: f64) {
 #[test]
 fn energy_dissipated_per_cycle_equals_the_loop_area() {
     let mut no_heat = EffectSet::all().without(Effect::ThermalSoftening);
-    assert_energy_balance(&mut TwoChamber::new(TwoChamberParams::default(), EffectSet::paper()), 3.33, 0.01);
-    assert_energy_balance(&mut TwoChamber::new(TwoChamberParams::default(), no_heat), 3.33, 0.01);
+    assert_energy_balance(
+        &mut TwoChamber::new(TwoChamberParams::default(), EffectSet::paper()),
+        3.33,
+        0.01,
+    );
+    assert_energy_balance(
+        &mut TwoChamber::new(TwoChamberParams::default(), no_heat),
+        3.33,
+        0.01,
+    );
     let mut bp = TwoChamberParams::default();
     bp.fluid.law = FluidLaw::BodnerPartom;
     bp.gap_active_length_m = 0.004;
     no_heat = no_heat.without(Effect::FieldLag);
     assert_energy_balance(&mut TwoChamber::new(bp, no_heat), 3.33, 0.01);
-    assert_energy_balance(&mut DirectShear::new(DirectShearParams::default()), 3.33, 0.01);
+    assert_energy_balance(
+        &mut DirectShear::new(DirectShearParams::default()),
+        3.33,
+        0.01,
+    );
     assert_energy_balance(&mut Spencer::new(SpencerParams::default()), 3.33, 0.01);
-    assert_energy_balance(&mut BinghamDamper::new(BinghamParams::default()), 3.33, 0.01);
+    assert_energy_balance(
+        &mut BinghamDamper::new(BinghamParams::default()),
+        3.33,
+        0.01,
+    );
 }
 
 fn z_opening(bulk_modulus: f64) -> f64 {
@@ -194,12 +246,21 @@ fn z_opening(bulk_modulus: f64) -> f64 {
 
 #[test]
 fn z_shaped_loop_opens_with_compressibility_and_closes_as_k_grows() {
-    let openings: Vec<f64> = [5.0e8, 5.0e9, 5.0e10, 5.0e12].iter().map(|&k| z_opening(k)).collect();
+    let openings: Vec<f64> = [5.0e8, 5.0e9, 5.0e10, 5.0e12]
+        .iter()
+        .map(|&k| z_opening(k))
+        .collect();
     assert!(openings[0] > 0.1, "paper's model: {openings:?}");
-    assert!(openings.windows(2).all(|w| w[1] < w[0]), "not monotone: {openings:?}");
+    assert!(
+        openings.windows(2).all(|w| w[1] < w[0]),
+        "not monotone: {openings:?}"
+    );
     assert!(openings[3] < 0.01, "K → ∞: {openings:?}");
     // The incompressible damper's loop has no opening at all (to the sampling's resolution).
-    let mut m = TwoChamber::new(TwoChamberParams::default(), EffectSet::NONE.with(Effect::GasSpring));
+    let mut m = TwoChamber::new(
+        TwoChamberParams::default(),
+        EffectSet::NONE.with(Effect::GasSpring),
+    );
     let s = run(&mut m, &programme(0.01, 5.0, 1.0, 0.6, 10_000.0), None);
     let cyc = last_cycle(&s, 5.0);
     let v: Vec<f64> = cyc.iter().map(|s| s.input.velocity_m_s).collect();
@@ -210,9 +271,22 @@ fn z_shaped_loop_opens_with_compressibility_and_closes_as_k_grows() {
 /// Run a model with internal step `h` at `rate`, and with `h/2` at twice the rate, and
 /// return the largest force difference at common instants (after the start-up
 /// transient) as a fraction of the peak force.
-fn halving_change(make: &dyn Fn(f64) -> Box<dyn DamperModel>, h: f64, rate: f64, current: f64) -> f64 {
-    let coarse = run(make(h).as_mut(), &programme(0.01, 5.0, current, 0.6, rate), None);
-    let fine = run(make(0.5 * h).as_mut(), &programme(0.01, 5.0, current, 0.6, 2.0 * rate), None);
+fn halving_change(
+    make: &dyn Fn(f64) -> Box<dyn DamperModel>,
+    h: f64,
+    rate: f64,
+    current: f64,
+) -> f64 {
+    let coarse = run(
+        make(h).as_mut(),
+        &programme(0.01, 5.0, current, 0.6, rate),
+        None,
+    );
+    let fine = run(
+        make(0.5 * h).as_mut(),
+        &programme(0.01, 5.0, current, 0.6, 2.0 * rate),
+        None,
+    );
     let pk = peak(&fine);
     coarse
         .iter()
@@ -238,11 +312,26 @@ fn halving_the_step_changes_the_force_by_less_than_a_thousandth_of_its_peak() {
         })
     };
     let cases: Vec<(&str, Maker)> = vec![
-        ("two-chamber paper", two_chamber(EffectSet::paper(), FluidLaw::Bingham)),
-        ("two-chamber all", two_chamber(EffectSet::all(), FluidLaw::Bingham)),
-        ("two-chamber HB all", two_chamber(EffectSet::all(), FluidLaw::HerschelBulkley)),
-        ("two-chamber BP all", two_chamber(EffectSet::all(), FluidLaw::BodnerPartom)),
-        ("two-chamber none", two_chamber(EffectSet::NONE, FluidLaw::Bingham)),
+        (
+            "two-chamber paper",
+            two_chamber(EffectSet::paper(), FluidLaw::Bingham),
+        ),
+        (
+            "two-chamber all",
+            two_chamber(EffectSet::all(), FluidLaw::Bingham),
+        ),
+        (
+            "two-chamber HB all",
+            two_chamber(EffectSet::all(), FluidLaw::HerschelBulkley),
+        ),
+        (
+            "two-chamber BP all",
+            two_chamber(EffectSet::all(), FluidLaw::BodnerPartom),
+        ),
+        (
+            "two-chamber none",
+            two_chamber(EffectSet::NONE, FluidLaw::Bingham),
+        ),
         (
             "direct-shear",
             Box::new(|h| {
@@ -263,7 +352,12 @@ fn halving_the_step_changes_the_force_by_less_than_a_thousandth_of_its_peak() {
                 Box::new(Spencer::new(p)) as Box<dyn DamperModel>
             }),
         ),
-        ("bingham", Box::new(|_| Box::new(BinghamDamper::new(BinghamParams::default())) as Box<dyn DamperModel>)),
+        (
+            "bingham",
+            Box::new(|_| {
+                Box::new(BinghamDamper::new(BinghamParams::default())) as Box<dyn DamperModel>
+            }),
+        ),
     ];
     let mut report = Vec::new();
     // Each model at its default internal step (two-chamber 1 ms, direct-shear and
@@ -277,7 +371,10 @@ fn halving_the_step_changes_the_force_by_less_than_a_thousandth_of_its_peak() {
         let h = default_step(name);
         let change = halving_change(make.as_ref(), h, 1000.0, 1.0);
         report.push(format!("{name}: {change:.2e}"));
-        assert!(change < 1e-3, "{name}: halving {h} s changes F by {change:.2e} of peak\n{report:?}");
+        assert!(
+            change < 1e-3,
+            "{name}: halving {h} s changes F by {change:.2e} of peak\n{report:?}"
+        );
     }
     eprintln!("{report:#?}");
 }

@@ -18,7 +18,10 @@ fn n_and_r0_follow_eq_5_5() {
     ] {
         let bp = BodnerPartom::from_paper(i, T, H);
         assert!((bp.n - n).abs() < 1e-12, "n at {i} A: {}", bp.n);
-        assert!((bp.r0_pa / (r0_kpa * 1e3) - 1.0).abs() < 1e-12, "R0 at {i} A");
+        assert!(
+            (bp.r0_pa / (r0_kpa * 1e3) - 1.0).abs() < 1e-12,
+            "R0 at {i} A"
+        );
         assert_eq!(bp.d0, 1.0e6);
     }
 }
@@ -88,11 +91,18 @@ fn direct_shear_first_loading_has_the_shape_of_fig_10() {
         let curve = first_loading(rate, 0.05);
         // Elastic start: slope G.
         let (g1, t1) = curve[5];
-        assert!((t1 / g1 / g - 1.0).abs() < 0.02, "initial slope at {rate}: {}", t1 / g1);
+        assert!(
+            (t1 / g1 / g - 1.0).abs() < 0.02,
+            "initial slope at {rate}: {}",
+            t1 / g1
+        );
         // Plastic plateau: the yield point (5.3) of that rate.
         let plateau = curve.last().unwrap().1;
         let tau0 = BodnerPartom::from_paper(1.0, T, H).yield_point(rate);
-        assert!((plateau / tau0 - 1.0).abs() < 5e-3, "plateau {plateau} vs τ0 {tau0}");
+        assert!(
+            (plateau / tau0 - 1.0).abs() < 5e-3,
+            "plateau {plateau} vs τ0 {tau0}"
+        );
         // Monotone rise, no overshoot.
         assert!(curve.windows(2).all(|w| w[1].1 >= w[0].1 - 1e-6 * tau0));
         plateaus.push(plateau);

@@ -217,7 +217,8 @@ impl TwoChamberParams {
     /// Effective fluid mass seen at the rod, m_f = ρ L A1² / (b h) \[kg\].
     pub fn fluid_mass_kg(&self) -> f64 {
         let s = self.slit();
-        self.fluid_density_kg_m3 * s.length_m * self.annulus_area().powi(2) / (s.width_m * s.height_m)
+        self.fluid_density_kg_m3 * s.length_m * self.annulus_area().powi(2)
+            / (s.width_m * s.height_m)
     }
     /// Gap flow law at current `i` and temperature `t`.
     pub fn flow_at(&self, i: f64, t: f64) -> SlitFlow {
@@ -256,7 +257,8 @@ struct Chambers<'a> {
 impl StiffSystem<2> for Chambers<'_> {
     fn rhs(&self, theta: f64, y: &Vector<2>) -> (Vector<2>, Matrix<2>) {
         let p = &self.m.params;
-        let x = self.from.displacement_m + theta * (self.to.displacement_m - self.from.displacement_m);
+        let x =
+            self.from.displacement_m + theta * (self.to.displacement_m - self.from.displacement_m);
         let v = self.from.velocity_m_s + theta * (self.to.velocity_m_s - self.from.velocity_m_s);
         let (a1, ap) = (p.annulus_area(), p.piston_area());
         let k = p.bulk_modulus_pa;
@@ -265,17 +267,15 @@ impl StiffSystem<2> for Chambers<'_> {
         let g1 = k / v1;
         let f1 = g1 * (a1 * v - q);
         if !self.m.effects.has(Effect::GasSpring) {
-            return (Vector::<2>::new(f1, 0.0), Matrix::<2>::new(-g1 * dq, g1 * dq, 0.0, 0.0));
+            return (
+                Vector::<2>::new(f1, 0.0),
+                Matrix::<2>::new(-g1 * dq, g1 * dq, 0.0, 0.0),
+            );
         }
         let (c2, dc2) = self.m.chamber2_compliance(y[1], x);
         let net = q - ap * v;
         let f2 = net / c2;
-        let j = Matrix::<2>::new(
-            -g1 * dq,
-            g1 * dq,
-            dq / c2,
-            -dq / c2 - net * dc2 / (c2 * c2),
-        );
+        let j = Matrix::<2>::new(-g1 * dq, g1 * dq, dq / c2, -dq / c2 - net * dc2 / (c2 * c2));
         (Vector::<2>::new(f1, f2), j)
     }
 }

@@ -1,0 +1,294 @@
+//! `mrtwin simulate`: drive one damper model through a test-stand programme and write
+//! the recording as CSV (PHYSICS.md format).
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use bridge::recording::{write_csv, Recording, Sample};
+use clap::{Args, ValueEnum};
+use twin::models::{build, FluidLaw, ModelKind, ModelParams};
+use twin::stand::{run as run_stand, Noise, Programme, SimulatedSample};
+use twin::{Effect, EffectSet};
+
+use crate::numbers::{finite, non_negative, positive};
+
+/// Node name whose section `--params` reads from a ROS 2 parameter file.
+pub const PARAMS_NODE: &str = "mrtwin_stand";
+
+/// Largest recording `simulate` agrees to produce, in samples.
+const MAX_SAMPLES: f64 = 5.0e7;
+
+/// Arguments of `mrtwin simulate`.
+#[derive(Debug, Args)]
+pub struct SimulateArgs {
+    /// Damper model: bingham, spencer, direct-shear or two-chamber.
+    #[arg(long, value_name = "NAME")]
+    pub model: String,
+    /// Stroke amplitude A [m] of x = A sin(2π f t).
+    #[arg(long, value_name = "M", default_value_t = 0.010)]
+    pub amplitude: f64,
+    /// Stroke frequencies [Hz], comma separated; one segment each (inner loop).
+    #[arg(
+        long = "frequency",
+        value_name = "HZ[,HZ…]",
+        value_delimiter = ',',
+        default_values_t = [1.66, 3.33, 5.0]
+    )]
+    pub frequencies: Vec<f64>,
+    /// Coil currents [A], comma separated; one block of segments each (outer loop).
+    #[arg(
+        long = "current",
+        value_name = "A[,A…]",
+        value_delimiter = ',',
+        default_values_t = [0.5, 1.0, 2.0],
+        allow_negative_numbers = true
+    )]
+    pub currents: Vec<f64>,
+    /// Duration of each segment [s].
+    #[arg(long, value_name = "S", default_value_t = 5.0)]
+    pub duration: f64,
+    /// Sample rate [Hz].
+    #[arg(long, value_name = "HZ", default_value_t = 400.0)]
+    pub rate: f64,
+    /// Force-sensor noise: standard deviation as a fraction of the peak force (0: none).
+    #[arg(long, value_name = "FRACTION", default_value_t = 0.0)]
+    pub noise: f64,
+    /// Seed of the noise generator (same seed, same recording).
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    pub seed: u64,
+    /// Effects, comma separated ids (fluid_compressibility, gas_spring, seal_friction,
+    /// thermal_softening, field_lag, fluid_inertia) or `none`; two-chamber only.
+    /// Default: the model's own (two-chamber: fluid_compressibility,gas_spring).
+    #[arg(long, value_name = "LIST")]
+    pub effects: Option<String>,
+    /// Model parameters: YAML file (ROS 2 ros__parameters, node `mrtwin_stand`, or plain)
+    /// with sections bingham, spencer, direct_shear, two_chamber.
+    #[arg(long, value_name = "FILE.yaml")]
+    pub params: Option<PathBuf>,
+    /// Two-chamber: constitutive law of the fluid in the gap.
+    #[arg(long, value_name = "LAW")]
+    pub fluid: Option<FluidArg>,
+    /// Two-chamber: effective bulk modulus K [Pa] (fluid_compressibility).
+    #[arg(long, value_name = "PA")]
+    pub bulk_modulus: Option<f64>,
+    /// Two-chamber: gas preload p0 [Pa gauge] (gas_spring).
+    #[arg(long, value_name = "PA")]
+    pub gas_preload: Option<f64>,
+    /// Two-chamber: Coulomb seal friction [N] (seal_friction).
+    #[arg(long, value_name = "N")]
+    pub seal_friction: Option<f64>,
+    /// Two-chamber: field time constant [s] (field_lag).
+    #[arg(long, value_name = "S")]
+    pub field_time_constant: Option<f64>,
+    /// Ambient temperature [°C] (default 25).
+    #[arg(long, value_name = "C", allow_negative_numbers = true)]
+    pub temperature: Option<f64>,
+    /// Output CSV file (its directory is created if needed).
+    #[arg(long, value_name = "FILE.csv")]
+    pub out: PathBuf,
+}
+
+/// The fluid laws of the two-chamber model, as named on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum FluidArg {
+    /// Bingham plastic.
+    Bingham,
+    /// Herschel–Bulkley.
+    HerschelBulkley,
+    /// Bodner–Partom law of Skalski & Zalewski.
+    BodnerPartom,
+}
+
+impl From<FluidArg> for FluidLaw {
+    fn from(f: FluidArg) -> Self {
+        match f {
+            FluidArg::Bingham => FluidLaw::Bingham,
+            FluidArg::HerschelBulkley => FluidLaw::HerschelBulkley,
+            FluidArg::BodnerPartom => FluidLaw::BodnerPartom,
+        }
+    }
+}
+
+/// Run the subcommand.
+pub fn run(args: &SimulateArgs) -> Result<()> {
+    let kind: ModelKind = args.model.parse()?;
+    let effects = match &args.effects {
+        Some(list) => EffectSet::parse_list(list).context("--effects")?,
+        None => kind.default_effects(),
+    };
+    let params = model_params(args, kind, effects)?;
+    let programme = programme(args)?;
+    let noise = (non_negative("--noise", args.noise)? > 0.0).then_some(Noise {
+        fraction: args.noise,
+        seed: args.seed,
+    });
+    let mut model = build(kind, &params, effects)?;
+
+    let start = Instant::now();
+    let samples = run_stand(model.as_mut(), &programme, noise);
+    let elapsed = start.elapsed();
+    check_finite(&samples)?;
+
+    let recording = to_recording(&samples, &args.out);
+    write_recording(&args.out, &recording)?;
+
+    let peak = samples
+        .iter()
+        .map(|s| s.measured_force_n.abs())
+        .fold(0.0, f64::max);
+    eprintln!(
+        "simulate: model {kind}, effects {effects}: {} samples in {} segments, \
+         peak |F| = {peak:.1} N, simulated in {:.2} s; wrote {}",
+        samples.len(),
+        programme.segments.len(),
+        elapsed.as_secs_f64(),
+        args.out.display()
+    );
+    Ok(())
+}
+
+/// Defaults, overridden by the parameter file, overridden by the flags.
+fn model_params(args: &SimulateArgs, kind: ModelKind, effects: EffectSet) -> Result<ModelParams> {
+    let mut params = match &args.params {
+        Some(path) => launch_config::load_params::<ModelParams>(path, PARAMS_NODE)
+            .context("--params")?,
+        None => ModelParams::default(),
+    };
+    let overrides: [(&str, Option<f64>, Option<Effect>); 4] = [
+        (
+            "--bulk-modulus",
+            args.bulk_modulus,
+            Some(Effect::FluidCompressibility),
+        ),
+        ("--gas-preload", args.gas_preload, Some(Effect::GasSpring)),
+        ("--seal-friction", args.seal_friction, Some(Effect::SealFriction)),
+        (
+            "--field-time-constant",
+            args.field_time_constant,
+            Some(Effect::FieldLag),
+        ),
+    ];
+    let given: Vec<&str> = overrides
+        .iter()
+        .filter(|(_, v, _)| v.is_some())
+        .map(|(flag, _, _)| *flag)
+        .chain(args.fluid.map(|_| "--fluid"))
+        .collect();
+    if kind != ModelKind::TwoChamber {
+        if let Some(flag) = given.first() {
+            bail!("{flag} applies to the two-chamber model only (model is {kind})");
+        }
+        return Ok(params);
+    }
+    for (flag, value, effect) in overrides {
+        if let (Some(_), Some(effect)) = (value, effect) {
+            if !effects.has(effect) {
+                eprintln!(
+                    "warning: {flag} has no effect unless `{effect}` is among the effects ({effects})"
+                );
+            }
+        }
+    }
+    let tc = &mut params.two_chamber;
+    if let Some(k) = args.bulk_modulus {
+        tc.bulk_modulus_pa = positive("--bulk-modulus", k)?;
+    }
+    if let Some(p) = args.gas_preload {
+        tc.gas_preload_pa = positive("--gas-preload", p)?;
+    }
+    if let Some(f) = args.seal_friction {
+        tc.seal_friction_n = non_negative("--seal-friction", f)?;
+    }
+    if let Some(t) = args.field_time_constant {
+        tc.field_time_constant_s = positive("--field-time-constant", t)?;
+    }
+    if let Some(law) = args.fluid {
+        tc.fluid.law = law.into();
+    }
+    Ok(params)
+}
+
+/// The programme of the flags: currents (outer) × frequencies (inner).
+fn programme(args: &SimulateArgs) -> Result<Programme> {
+    let amplitude = positive("--amplitude", args.amplitude)?;
+    let duration = positive("--duration", args.duration)?;
+    let rate = positive("--rate", args.rate)?;
+    if args.frequencies.is_empty() || args.currents.is_empty() {
+        bail!("--frequency and --current need at least one value each");
+    }
+    for &f in &args.frequencies {
+        positive("--frequency", f)?;
+        if rate <= 2.0 * f {
+            bail!("--rate {rate} Hz is too low for {f} Hz: it must exceed twice the frequency");
+        }
+    }
+    for &i in &args.currents {
+        finite("--current", i)?;
+    }
+    if duration * rate < 1.0 {
+        bail!("--duration {duration} s at --rate {rate} Hz gives no sample per segment");
+    }
+    let segments = (args.frequencies.len() * args.currents.len()) as f64;
+    if segments * duration * rate > MAX_SAMPLES {
+        bail!(
+            "the programme would have {:.0} samples (limit {MAX_SAMPLES:.0}); \
+             lower --duration or --rate",
+            segments * duration * rate
+        );
+    }
+    let mut programme = Programme::grid(
+        amplitude,
+        &args.frequencies,
+        &args.currents,
+        duration,
+        rate,
+    );
+    if let Some(t) = args.temperature {
+        programme.ambient_temperature_c = finite("--temperature", t)?;
+    }
+    Ok(programme)
+}
+
+/// An error if the model produced a non-finite force anywhere.
+pub fn check_finite(samples: &[SimulatedSample]) -> Result<()> {
+    match samples.iter().find(|s| !s.measured_force_n.is_finite()) {
+        Some(s) => bail!(
+            "the model produced a non-finite force at t = {} s (segment {}); check the parameters",
+            s.time_s,
+            s.segment + 1
+        ),
+        None => Ok(()),
+    }
+}
+
+/// The simulated samples as a recording: the measured (noisy) force, and the model's
+/// fluid temperature.
+pub fn to_recording(samples: &[SimulatedSample], source: &Path) -> Recording {
+    Recording {
+        samples: samples
+            .iter()
+            .map(|s| Sample {
+                time_s: s.time_s,
+                displacement_m: s.input.displacement_m,
+                velocity_m_s: s.input.velocity_m_s,
+                force_n: s.measured_force_n,
+                current_a: s.input.current_a,
+                temperature_c: Some(s.output.fluid_temperature_c),
+            })
+            .collect(),
+        velocity_derived: false,
+        has_temperature: true,
+        source: source.display().to_string(),
+    }
+}
+
+/// Write `recording` to `path`, creating its directory first.
+pub fn write_recording(path: &Path, recording: &Recording) -> Result<()> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("cannot create directory {}", dir.display()))?;
+    }
+    write_csv(path, recording)?;
+    Ok(())
+}
