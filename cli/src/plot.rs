@@ -5,6 +5,7 @@
 use std::path::Path;
 
 use anyhow::{anyhow, Context, Result};
+pub use plotters::chart::SeriesLabelPosition;
 use plotters::prelude::*;
 
 /// Colours for successive series (Tableau 10).
@@ -37,6 +38,8 @@ pub struct Panel {
     pub title: String,
     /// The curves.
     pub series: Vec<Series>,
+    /// Where the legend goes (default: upper left, with head room kept free for it).
+    pub legend: Option<SeriesLabelPosition>,
 }
 
 /// A figure: panels side by side.
@@ -78,7 +81,15 @@ fn draw_panel(
     panel: &Panel,
     figure: &Figure,
 ) -> Result<()> {
-    let (x_range, y_range) = ranges(panel);
+    let (x_range, mut y_range) = ranges(panel);
+    let legend = panel
+        .legend
+        .clone()
+        .unwrap_or(SeriesLabelPosition::UpperLeft);
+    if legend == SeriesLabelPosition::UpperLeft {
+        // Head room for the legend above the curves.
+        y_range.end += 0.2 * (y_range.end - y_range.start);
+    }
     let mut chart = ChartBuilder::on(area)
         .caption(&panel.title, ("sans-serif", 18))
         .margin(12)
@@ -112,7 +123,7 @@ fn draw_panel(
     if panel.series.iter().any(|s| !s.label.is_empty()) {
         chart
             .configure_series_labels()
-            .position(SeriesLabelPosition::UpperLeft)
+            .position(legend)
             .background_style(WHITE.mix(0.85))
             .border_style(RGBColor(180, 180, 180))
             .draw()
@@ -128,7 +139,12 @@ fn ranges(panel: &Panel) -> (std::ops::Range<f64>, std::ops::Range<f64>) {
         .iter()
         .flat_map(|s| s.points.iter())
         .filter(|(x, y)| x.is_finite() && y.is_finite());
-    let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+    let (mut x0, mut x1, mut y0, mut y1) = (
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    );
     for &(x, y) in points {
         x0 = x0.min(x);
         x1 = x1.max(x);

@@ -26,14 +26,20 @@ pub struct SimulateArgs {
     #[arg(long, value_name = "NAME")]
     pub model: String,
     /// Stroke amplitude A [m] of x = A sin(2π f t).
-    #[arg(long, value_name = "M", default_value_t = 0.010)]
+    #[arg(
+        long,
+        value_name = "M",
+        default_value_t = 0.010,
+        allow_hyphen_values = true
+    )]
     pub amplitude: f64,
     /// Stroke frequencies [Hz], comma separated; one segment each (inner loop).
     #[arg(
         long = "frequency",
         value_name = "HZ[,HZ…]",
         value_delimiter = ',',
-        default_values_t = [1.66, 3.33, 5.0]
+        default_value = "1.66,3.33,5",
+        allow_hyphen_values = true
     )]
     pub frequencies: Vec<f64>,
     /// Coil currents [A], comma separated; one block of segments each (outer loop).
@@ -41,24 +47,39 @@ pub struct SimulateArgs {
         long = "current",
         value_name = "A[,A…]",
         value_delimiter = ',',
-        default_values_t = [0.5, 1.0, 2.0],
-        allow_negative_numbers = true
+        default_value = "0.5,1,2",
+        allow_hyphen_values = true
     )]
     pub currents: Vec<f64>,
     /// Duration of each segment [s].
-    #[arg(long, value_name = "S", default_value_t = 5.0)]
+    #[arg(
+        long,
+        value_name = "S",
+        default_value_t = 5.0,
+        allow_hyphen_values = true
+    )]
     pub duration: f64,
     /// Sample rate [Hz].
-    #[arg(long, value_name = "HZ", default_value_t = 400.0)]
+    #[arg(
+        long,
+        value_name = "HZ",
+        default_value_t = 400.0,
+        allow_hyphen_values = true
+    )]
     pub rate: f64,
     /// Force-sensor noise: standard deviation as a fraction of the peak force (0: none).
-    #[arg(long, value_name = "FRACTION", default_value_t = 0.0)]
+    #[arg(
+        long,
+        value_name = "FRACTION",
+        default_value_t = 0.0,
+        allow_hyphen_values = true
+    )]
     pub noise: f64,
     /// Seed of the noise generator (same seed, same recording).
     #[arg(long, value_name = "N", default_value_t = 1)]
     pub seed: u64,
     /// Effects, comma separated ids (fluid_compressibility, gas_spring, seal_friction,
-    /// thermal_softening, field_lag, fluid_inertia) or `none`; two-chamber only.
+    /// thermal_softening, field_lag, fluid_inertia), `all` or `none`; two-chamber only.
     /// Default: the model's own (two-chamber: fluid_compressibility,gas_spring).
     #[arg(long, value_name = "LIST")]
     pub effects: Option<String>,
@@ -70,19 +91,19 @@ pub struct SimulateArgs {
     #[arg(long, value_name = "LAW")]
     pub fluid: Option<FluidArg>,
     /// Two-chamber: effective bulk modulus K [Pa] (fluid_compressibility).
-    #[arg(long, value_name = "PA")]
+    #[arg(long, value_name = "PA", allow_hyphen_values = true)]
     pub bulk_modulus: Option<f64>,
     /// Two-chamber: gas preload p0 [Pa gauge] (gas_spring).
-    #[arg(long, value_name = "PA")]
+    #[arg(long, value_name = "PA", allow_hyphen_values = true)]
     pub gas_preload: Option<f64>,
     /// Two-chamber: Coulomb seal friction [N] (seal_friction).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", allow_hyphen_values = true)]
     pub seal_friction: Option<f64>,
     /// Two-chamber: field time constant [s] (field_lag).
-    #[arg(long, value_name = "S")]
+    #[arg(long, value_name = "S", allow_hyphen_values = true)]
     pub field_time_constant: Option<f64>,
     /// Ambient temperature [°C] (default 25).
-    #[arg(long, value_name = "C", allow_negative_numbers = true)]
+    #[arg(long, value_name = "C", allow_hyphen_values = true)]
     pub temperature: Option<f64>,
     /// Output CSV file (its directory is created if needed).
     #[arg(long, value_name = "FILE.csv")]
@@ -114,6 +135,7 @@ impl From<FluidArg> for FluidLaw {
 pub fn run(args: &SimulateArgs) -> Result<()> {
     let kind: ModelKind = args.model.parse()?;
     let effects = match &args.effects {
+        Some(list) if list.trim() == "all" => EffectSet::all(),
         Some(list) => EffectSet::parse_list(list).context("--effects")?,
         None => kind.default_effects(),
     };
@@ -151,43 +173,42 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
 /// Defaults, overridden by the parameter file, overridden by the flags.
 fn model_params(args: &SimulateArgs, kind: ModelKind, effects: EffectSet) -> Result<ModelParams> {
     let mut params = match &args.params {
-        Some(path) => launch_config::load_params::<ModelParams>(path, PARAMS_NODE)
-            .context("--params")?,
+        Some(path) => {
+            launch_config::load_params::<ModelParams>(path, PARAMS_NODE).context("--params")?
+        }
         None => ModelParams::default(),
     };
-    let overrides: [(&str, Option<f64>, Option<Effect>); 4] = [
+    // Each effect-parameter flag with the effect it tunes.
+    let overrides = [
         (
             "--bulk-modulus",
             args.bulk_modulus,
-            Some(Effect::FluidCompressibility),
+            Effect::FluidCompressibility,
         ),
-        ("--gas-preload", args.gas_preload, Some(Effect::GasSpring)),
-        ("--seal-friction", args.seal_friction, Some(Effect::SealFriction)),
+        ("--gas-preload", args.gas_preload, Effect::GasSpring),
+        ("--seal-friction", args.seal_friction, Effect::SealFriction),
         (
             "--field-time-constant",
             args.field_time_constant,
-            Some(Effect::FieldLag),
+            Effect::FieldLag,
         ),
     ];
-    let given: Vec<&str> = overrides
+    let mut given = overrides
         .iter()
-        .filter(|(_, v, _)| v.is_some())
+        .filter(|(_, value, _)| value.is_some())
         .map(|(flag, _, _)| *flag)
-        .chain(args.fluid.map(|_| "--fluid"))
-        .collect();
+        .chain(args.fluid.map(|_| "--fluid"));
     if kind != ModelKind::TwoChamber {
-        if let Some(flag) = given.first() {
+        if let Some(flag) = given.next() {
             bail!("{flag} applies to the two-chamber model only (model is {kind})");
         }
         return Ok(params);
     }
     for (flag, value, effect) in overrides {
-        if let (Some(_), Some(effect)) = (value, effect) {
-            if !effects.has(effect) {
-                eprintln!(
-                    "warning: {flag} has no effect unless `{effect}` is among the effects ({effects})"
-                );
-            }
+        if value.is_some() && !effects.has(effect) {
+            eprintln!(
+                "warning: {flag} has no effect unless `{effect}` is among the effects ({effects})"
+            );
         }
     }
     let tc = &mut params.two_chamber;
@@ -237,13 +258,8 @@ fn programme(args: &SimulateArgs) -> Result<Programme> {
             segments * duration * rate
         );
     }
-    let mut programme = Programme::grid(
-        amplitude,
-        &args.frequencies,
-        &args.currents,
-        duration,
-        rate,
-    );
+    let mut programme =
+        Programme::grid(amplitude, &args.frequencies, &args.currents, duration, rate);
     if let Some(t) = args.temperature {
         programme.ambient_temperature_c = finite("--temperature", t)?;
     }

@@ -12,21 +12,26 @@ use crate::numbers::{finite, positive, trim};
 #[derive(Debug, Args)]
 pub struct YieldStressArgs {
     /// Coil current i [A] (its magnitude enters (5.5)).
-    #[arg(long, value_name = "A", allow_negative_numbers = true)]
+    #[arg(long, value_name = "A", allow_hyphen_values = true)]
     pub current: f64,
     /// Fluid temperature t [°C].
     #[arg(
         long,
         value_name = "C",
         default_value_t = 25.0,
-        allow_negative_numbers = true
+        allow_hyphen_values = true
     )]
     pub temperature: f64,
     /// Gap height h [m] (the paper's gaps: 0.5e-3, 0.7e-3, 1.0e-3).
-    #[arg(long, value_name = "M", default_value_t = 0.7e-3)]
+    #[arg(
+        long,
+        value_name = "M",
+        default_value_t = 0.7e-3,
+        allow_hyphen_values = true
+    )]
     pub gap: f64,
     /// Plastic shear rate [1/s], in (0, 2·D0) = (0, 2e6).
-    #[arg(long, value_name = "1/s")]
+    #[arg(long, value_name = "1/s", allow_hyphen_values = true)]
     pub shear_rate: f64,
     /// Print one JSON object instead of a sentence.
     #[arg(long)]
