@@ -58,8 +58,9 @@ fn fit_bingham(v: &[f64], f: &[f64]) -> [f64; 3] {
         b.swap(c, p);
         for r in c + 1..3 {
             let k = a[r][c] / a[c][c];
-            for j in c..3 {
-                a[r][j] -= k * a[c][j];
+            let pivot_row = a[c];
+            for (x, p) in a[r].iter_mut().zip(pivot_row).skip(c) {
+                *x -= k * p;
             }
             b[r] -= k * b[c];
         }

@@ -97,8 +97,10 @@ fn incompressible_model_is_the_analytic_bingham_damper() {
 #[test]
 fn infinite_bulk_modulus_recovers_the_incompressible_damper() {
     let prog = programme(0.01, 3.33, 1.0, 0.9, 1000.0);
-    let mut stiff_params = TwoChamberParams::default();
-    stiff_params.bulk_modulus_pa = 1.0e13;
+    let stiff_params = TwoChamberParams {
+        bulk_modulus_pa: 1.0e13,
+        ..Default::default()
+    };
     let mut compressible = TwoChamber::new(stiff_params.clone(), EffectSet::paper());
     let mut incompressible = TwoChamber::new(stiff_params, EffectSet::NONE.with(Effect::GasSpring));
     let a = run(&mut compressible, &prog, None);
@@ -234,8 +236,10 @@ fn energy_dissipated_per_cycle_equals_the_loop_area() {
 }
 
 fn z_opening(bulk_modulus: f64) -> f64 {
-    let mut p = TwoChamberParams::default();
-    p.bulk_modulus_pa = bulk_modulus;
+    let p = TwoChamberParams {
+        bulk_modulus_pa: bulk_modulus,
+        ..Default::default()
+    };
     let mut m = TwoChamber::new(p, EffectSet::paper());
     let s = run(&mut m, &programme(0.01, 5.0, 1.0, 0.6, 10_000.0), None);
     let cyc = last_cycle(&s, 5.0);
@@ -302,8 +306,10 @@ fn halving_the_step_changes_the_force_by_less_than_a_thousandth_of_its_peak() {
     type Maker = Box<dyn Fn(f64) -> Box<dyn DamperModel>>;
     let two_chamber = |effects: EffectSet, law: FluidLaw| -> Maker {
         Box::new(move |h| {
-            let mut p = TwoChamberParams::default();
-            p.max_substep_s = h;
+            let mut p = TwoChamberParams {
+                max_substep_s: h,
+                ..Default::default()
+            };
             p.fluid.law = law;
             if law == FluidLaw::BodnerPartom {
                 p.gap_active_length_m = 0.004;
