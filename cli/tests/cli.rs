@@ -356,3 +356,30 @@ fn demo_writes_recordings_plots_and_summary() {
     let tau0_1a_73 = rows[1]["tau0_Pa"][0].as_f64().expect("τ0 at 1 A, 73 1/s");
     assert!((tau0_1a_73 / 364.6e3 - 1.0).abs() < 5e-3);
 }
+
+#[test]
+fn the_example_parameter_file_runs_every_effect_with_bodner_partom() {
+    let dir = TempDir::new("example_params");
+    let out = dir.path("bp.csv");
+    let params = Path::new(env!("CARGO_MANIFEST_DIR")).join("../launch-config/examples/stand.yaml");
+    let o = short_run(
+        &out,
+        &[
+            "--params",
+            params.to_str().expect("UTF-8 path"),
+            "--effects",
+            "all",
+            "--fluid",
+            "bodner-partom",
+        ],
+    );
+    ok(&o);
+    let rec = bridge::recording::read_csv(&out).expect("readable recording");
+    let peak = rec
+        .samples
+        .iter()
+        .map(|s| s.force_n.abs())
+        .fold(0.0, f64::max);
+    // The comment in the file promises a force near 5 kN at 1 A with its 1 mm gap.
+    assert!((1.0e3..1.0e4).contains(&peak), "peak {peak} N");
+}
