@@ -8,6 +8,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::fluid::signum0;
 use crate::model::{DamperInput, DamperModel, DamperOutput};
+use crate::models::quadratic_in_current;
 
 /// Parameters of the Bingham damper; f_c and c0 are quadratic in |I|.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -32,11 +33,6 @@ impl Default for BinghamParams {
     }
 }
 
-fn quadratic(c: &[f64; 3], i: f64) -> f64 {
-    let i = i.abs();
-    (c[0] + c[1] * i + c[2] * i * i).max(0.0)
-}
-
 /// The Bingham damper.
 #[derive(Debug, Clone)]
 pub struct BinghamDamper {
@@ -58,8 +54,8 @@ impl BinghamDamper {
     /// The force at an input.
     pub fn force(&self, inp: &DamperInput) -> f64 {
         let v = inp.velocity_m_s;
-        quadratic(&self.params.friction_force_n, inp.current_a) * signum0(v)
-            + quadratic(&self.params.damping_n_s_m, inp.current_a) * v
+        quadratic_in_current(&self.params.friction_force_n, inp.current_a) * signum0(v)
+            + quadratic_in_current(&self.params.damping_n_s_m, inp.current_a) * v
             + self.params.offset_n
     }
 

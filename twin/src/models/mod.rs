@@ -18,6 +18,13 @@ pub use direct_shear::{DirectShear, DirectShearParams};
 pub use spencer::{Spencer, SpencerParams};
 pub use two_chamber::{FluidLaw, FluidParams, TwoChamber, TwoChamberParams};
 
+/// c0 + c1 |I| + c2 I², floored at 0: how the models' yield levels and viscosities grow
+/// with coil current (quadratic, as Graczykowski & Pawłowski assume).
+pub fn quadratic_in_current(c: &[f64; 3], current_a: f64) -> f64 {
+    let i = current_a.abs();
+    (c[0] + c[1] * i + c[2] * i * i).max(0.0)
+}
+
 /// The models mrtwin knows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum ModelKind {

@@ -36,6 +36,7 @@ use crate::fluid::{Bingham, BodnerPartom, HerschelBulkley};
 use crate::gap::{GapLaw, SlitFlow, SlitGap};
 use crate::integrate::{trbdf2_adaptive, Matrix, StiffSystem, Tolerance, Vector};
 use crate::model::{DamperInput, DamperModel, DamperOutput};
+use crate::models::quadratic_in_current;
 
 /// Which constitutive law the fluid follows in the gap.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -86,18 +87,13 @@ impl Default for FluidParams {
     }
 }
 
-fn quadratic(c: &[f64; 3], i: f64) -> f64 {
-    let i = i.abs();
-    (c[0] + c[1] * i + c[2] * i * i).max(0.0)
-}
-
 impl FluidParams {
     /// The gap law at current `i` \[A\] and temperature `t` \[°C\] for a gap of height `h`.
     pub fn law_at(&self, i: f64, t: f64, h: f64) -> GapLaw {
         let dt = t - self.reference_temperature_c;
-        let tau_y = quadratic(&self.yield_stress_pa, i)
+        let tau_y = quadratic_in_current(&self.yield_stress_pa, i)
             * (1.0 - self.yield_stress_temp_coeff_per_k * dt).max(0.0);
-        let mu = quadratic(&self.viscosity_pa_s, i).max(1e-6)
+        let mu = quadratic_in_current(&self.viscosity_pa_s, i).max(1e-6)
             * (-self.viscosity_temp_coeff_per_k * dt).exp();
         match self.law {
             FluidLaw::Bingham => GapLaw::Bingham(Bingham {
