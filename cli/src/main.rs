@@ -3,10 +3,12 @@
 //! * `simulate`: drive a damper model through a test-stand programme, write a CSV recording.
 //! * `yield-stress`: τ0 of the Bodner–Partom law of Skalski & Zalewski, eqs. (5.3), (5.5).
 //! * `demo`: the Skalski–Zalewski programme through two models: recordings, plots, summary.
+//! * `info`: what a CSV recording holds, after strict input checks.
 //!
 //! Errors are printed as `error: …` with their causes, and the exit code is 1.
 
 mod demo;
+mod info;
 mod loops;
 mod numbers;
 mod plot;
@@ -33,6 +35,8 @@ enum Command {
     YieldStress(yield_stress::YieldStressArgs),
     /// Run the Skalski–Zalewski programme on two models: CSVs, SVG plots and a summary.
     Demo(demo::DemoArgs),
+    /// Check a CSV recording and summarise it: samples, rate, gaps, currents, force range.
+    Info(info::InfoArgs),
 }
 
 fn main() -> ExitCode {
@@ -41,6 +45,7 @@ fn main() -> ExitCode {
         Command::Simulate(args) => simulate::run(args),
         Command::YieldStress(args) => yield_stress::run(args),
         Command::Demo(args) => demo::run(args),
+        Command::Info(args) => info::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

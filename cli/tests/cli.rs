@@ -383,3 +383,55 @@ fn the_example_parameter_file_runs_every_effect_with_bodner_partom() {
     // The comment in the file promises a force near 5 kN at 1 A with its 1 mm gap.
     assert!((1.0e3..1.0e4).contains(&peak), "peak {peak} N");
 }
+
+/// Write `text` as a CSV file in a fresh temporary directory and run `mrtwin info` on it.
+fn info_on(test: &str, text: &str) -> (TempDir, Output) {
+    let dir = TempDir::new(test);
+    let path = dir.path("rec.csv");
+    fs::write(&path, text).expect("write test CSV");
+    let o = mrtwin(&["info", path.to_str().expect("UTF-8 path")]);
+    (dir, o)
+}
+
+#[test]
+fn info_summarises_a_simulated_recording() {
+    let dir = TempDir::new("info_ok");
+    let csv = dir.path("tc.csv");
+    ok(&short_run(&csv, &[]));
+    let o = mrtwin(&["info", csv.to_str().expect("UTF-8 path")]);
+    ok(&o);
+    let out = stdout(&o);
+    assert!(out.contains("samples       1000"), "{out}");
+    assert!(out.contains("1000.0 Hz"), "{out}");
+    assert!(out.contains("gaps          0"), "{out}");
+}
+
+#[test]
+fn info_rejects_nan_naming_line_and_column() {
+    let (_d, o) = info_on(
+        "info_nan",
+        "time_s,displacement_m,force_N,current_A\n0,0,1,1\n0.001,0.0001,nan,1\n",
+    );
+    let err = fails(&o);
+    assert!(
+        err.contains("rec.csv") && err.contains("line 3") && err.contains("force_N"),
+        "{err}"
+    );
+}
+
+#[test]
+fn info_rejects_unsorted_time_naming_the_line() {
+    let (_d, o) = info_on(
+        "info_unsorted",
+        "time_s,displacement_m,force_N,current_A\n0,0,1,1\n0.002,0,1,1\n0.001,0,1,1\n",
+    );
+    let err = fails(&o);
+    assert!(err.contains("line 4"), "{err}");
+}
+
+#[test]
+fn info_rejects_a_missing_column_naming_it() {
+    let (_d, o) = info_on("info_missing", "time_s,displacement_m,current_A\n0,0,1\n");
+    let err = fails(&o);
+    assert!(err.contains("force_N"), "{err}");
+}
