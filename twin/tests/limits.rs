@@ -384,3 +384,38 @@ fn halving_the_step_changes_the_force_by_less_than_a_thousandth_of_its_peak() {
     }
     eprintln!("{report:#?}");
 }
+
+#[test]
+fn flow_blocking_does_not_chatter_at_the_sensor_rate() {
+    // Over steady cycles at 400 Hz (the paper's rate) and 1 kHz, the force increment
+    // changes sign twice per cycle (at the velocity peaks), never back and forth around
+    // the yield switches.
+    for rate in [400.0, 1000.0] {
+        for law in [FluidLaw::Bingham, FluidLaw::HerschelBulkley] {
+            let mut p = TwoChamberParams::default();
+            p.fluid.law = law;
+            let mut m = TwoChamber::new(p, EffectSet::all());
+            let s = run(&mut m, &programme(0.01, 5.0, 1.0, 2.0, rate), None);
+            let steady: Vec<f64> = s
+                .iter()
+                .filter(|s| s.time_s >= 1.0)
+                .map(|s| s.output.force_n)
+                .collect();
+            let pk = steady.iter().map(|f| f.abs()).fold(0.0, f64::max);
+            let increments: Vec<f64> = steady
+                .windows(2)
+                .map(|w| w[1] - w[0])
+                .filter(|d| d.abs() > 1e-6 * pk)
+                .collect();
+            let sign_changes = increments
+                .windows(2)
+                .filter(|w| (w[0] > 0.0) != (w[1] > 0.0))
+                .count();
+            let cycles = 5.0;
+            assert!(
+                (2.0 * cycles - 2.0..=2.0 * cycles + 2.0).contains(&(sign_changes as f64)),
+                "{law:?} at {rate} Hz: {sign_changes} sign changes in {cycles} cycles"
+            );
+        }
+    }
+}
