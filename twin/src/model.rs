@@ -35,6 +35,29 @@ impl DamperInput {
     }
 }
 
+/// How many equal sub-steps of at most `max_substep_s` cover a step of `dt` (at least 1).
+pub fn substep_count(dt: f64, max_substep_s: f64) -> usize {
+    ((dt / max_substep_s).ceil() as usize).max(1)
+}
+
+/// `count` equal sub-steps from `from` to `to` over `dt` seconds: the input at the start
+/// and at the end of each (interpolated linearly) and the sub-step's length.
+pub fn substeps(
+    from: DamperInput,
+    to: DamperInput,
+    dt: f64,
+    count: usize,
+) -> impl Iterator<Item = (DamperInput, DamperInput, f64)> {
+    let h = dt / count as f64;
+    (0..count).map(move |k| {
+        (
+            from.lerp(&to, k as f64 / count as f64),
+            from.lerp(&to, (k + 1) as f64 / count as f64),
+            h,
+        )
+    })
+}
+
 /// What a damper model predicts at the end of a step.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct DamperOutput {

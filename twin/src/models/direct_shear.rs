@@ -19,7 +19,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::fluid::BodnerPartom;
 use crate::integrate::{trbdf2_adaptive, Matrix, StiffSystem, Tolerance, Vector};
-use crate::model::{DamperInput, DamperModel, DamperOutput};
+use crate::model::{substep_count, substeps, DamperInput, DamperModel, DamperOutput};
 
 /// Geometry and elasticity of the direct-shear gap.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -149,16 +149,13 @@ impl DamperModel for DirectShear {
             self.reset(input);
             return self.output(input);
         };
-        let n = ((dt / self.params.max_substep_s).ceil() as usize).max(1);
-        let h = dt / n as f64;
+        let n = substep_count(dt, self.params.max_substep_s);
         let tol = Tolerance {
             atol: Vector::<1>::new(1e-3),
             rtol: 1e-10,
         };
         let mut power0 = self.power(&prev);
-        for k in 0..n {
-            let from = prev.lerp(input, k as f64 / n as f64);
-            let to = prev.lerp(input, (k + 1) as f64 / n as f64);
+        for (from, to, h) in substeps(prev, *input, dt, n) {
             let sys = Shear {
                 params: &self.params,
                 law: self.law(&to),

@@ -15,7 +15,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::fluid::signum0;
 use crate::integrate::{trbdf2_adaptive, Matrix, StiffSystem, Tolerance, Vector};
-use crate::model::{DamperInput, DamperModel, DamperOutput};
+use crate::model::{substep_count, substeps, DamperInput, DamperModel, DamperOutput};
 
 /// Parameters of the modified Bouc–Wen model (defaults: Spencer et al. 1997, Table 1,
 /// converted to SI).
@@ -198,16 +198,13 @@ impl DamperModel for Spencer {
             self.reset(input);
             return self.output(input);
         };
-        let n = ((dt / self.params.max_substep_s).ceil() as usize).max(1);
-        let h = dt / n as f64;
+        let n = substep_count(dt, self.params.max_substep_s);
         let tol = Tolerance {
             atol: Vector::<2>::new(1e-12, 1e-12),
             rtol: 1e-10,
         };
         let mut power0 = self.power(&prev);
-        for k in 0..n {
-            let from = prev.lerp(input, k as f64 / n as f64);
-            let to = prev.lerp(input, (k + 1) as f64 / n as f64);
+        for (from, to, h) in substeps(prev, *input, dt, n) {
             let cmd = self.params.volts_per_amp * 0.5 * (from.current_a + to.current_a).abs();
             self.u += (1.0 - (-self.params.eta * h).exp()) * (cmd - self.u);
             let sys = BoucWen {

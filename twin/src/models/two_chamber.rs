@@ -35,7 +35,7 @@ use crate::effects::{Effect, EffectSet};
 use crate::fluid::{Bingham, BodnerPartom, HerschelBulkley};
 use crate::gap::{GapLaw, SlitFlow, SlitGap};
 use crate::integrate::{trbdf2_adaptive, Matrix, StiffSystem, Tolerance, Vector};
-use crate::model::{DamperInput, DamperModel, DamperOutput};
+use crate::model::{substep_count, substeps, DamperInput, DamperModel, DamperOutput};
 use crate::models::quadratic_in_current;
 
 /// Which constitutive law the fluid follows in the gap.
@@ -391,10 +391,8 @@ impl TwoChamber {
             let dpy = flow.yield_pressure();
             let flowing = |y: &Vector<2>| (y[0] - y[1]).abs() > dpy;
             let uniform = |m: &Self| {
-                (0..REFINE).fold(y0, |y, k| {
-                    let a = from.lerp(to, k as f64 / REFINE as f64);
-                    let b = from.lerp(to, (k + 1) as f64 / REFINE as f64);
-                    m.integrate_chambers(&y, &a, &b, h / REFINE as f64, &flow)
+                substeps(*from, *to, h, REFINE).fold(y0, |y, (a, b, hk)| {
+                    m.integrate_chambers(&y, &a, &b, hk, &flow)
                 })
             };
             let mut y = if self.refine_next {
@@ -489,12 +487,9 @@ impl DamperModel for TwoChamber {
             self.reset(input);
             return self.output();
         };
-        let n = ((dt / self.params.max_substep_s).ceil() as usize).max(1);
-        let h = dt / n as f64;
+        let n = substep_count(dt, self.params.max_substep_s);
         let mut power0 = self.last_force_power.1;
-        for k in 0..n {
-            let from = prev.lerp(input, k as f64 / n as f64);
-            let to = prev.lerp(input, (k + 1) as f64 / n as f64);
+        for (from, to, h) in substeps(prev, *input, dt, n) {
             let i_mid = 0.5 * (from.current_a + to.current_a);
             self.current_eff = if self.effects.has(Effect::FieldLag) {
                 let tau = self.params.field_time_constant_s.max(1e-9);
