@@ -9,6 +9,10 @@ if [ ! -d ../shared/data/real ]; then
   exit 1
 fi
 
+echo "== python interop peers (venv)"
+bash scripts/setup-venv.sh
+export MRTWIN_PYTHON="$PWD/${MRTWIN_VENV:-.venv}/bin/python"
+
 echo "== cargo fmt --check"
 cargo fmt --all -- --check
 

@@ -1,0 +1,1 @@
+//! rosbag2 directories with MCAP storage (issue 4).

@@ -1,0 +1,1 @@
+//! Diagnose: find the physics a damper model left out (issue 6).

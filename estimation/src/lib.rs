@@ -1,0 +1,1 @@
+//! Yield-stress identification, online estimation and health checks (issue 5).

@@ -1,0 +1,1 @@
+//! The twin node (issue 3).
