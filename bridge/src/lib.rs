@@ -24,3 +24,41 @@ pub use recording::{
     derive_velocity, parse_csv, read_csv, to_csv_string, write_csv, Recording, RecordingError,
     Sample,
 };
+
+/// Why [`open_recording`] failed: the bag's or the CSV's own error.
+#[derive(Debug, thiserror::Error)]
+pub enum OpenRecordingError {
+    /// Reading the bag failed.
+    #[error(transparent)]
+    Bag(#[from] bag::BagError),
+    /// Reading the CSV failed.
+    #[error(transparent)]
+    Csv(#[from] RecordingError),
+}
+
+/// `true` when `path` is read as a bag: a directory, a `.mcap` file, or a file that
+/// starts with the MCAP magic.
+pub fn is_bag_path(path: &std::path::Path) -> bool {
+    use std::io::Read;
+    if path.is_dir()
+        || path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("mcap"))
+    {
+        return true;
+    }
+    let mut head = [0u8; 8];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut head))
+        .is_ok_and(|_| head == *mcap::MAGIC)
+}
+
+/// Open a recording from a bag (directory or `.mcap`: its `sensor/sample` topic, see
+/// [`bag::read_recording`]) or a CSV file ([`read_csv`]).
+pub fn open_recording(path: &std::path::Path) -> Result<Recording, OpenRecordingError> {
+    if is_bag_path(path) {
+        Ok(bag::read_recording(path)?)
+    } else {
+        Ok(read_csv(path)?)
+    }
+}

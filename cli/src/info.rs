@@ -1,8 +1,13 @@
 //! `mrtwin info`: what a recording holds — samples, duration, sample rate, gaps, current
 //! levels, force range — after the strict checks of the CSV reader (NaN, unsorted time,
 //! missing columns and millimetres for metres are errors naming the line or column).
+//!
+//! For a bag (directory or `.mcap`): its files and metadata, then per topic the type,
+//! message count, duration, median rate, largest gap between log times and the number of
+//! gaps longer than twice the median period; topics mrtwin skips; recovery notes
+//! (truncated or unfinished files); and the recording summary of `sensor/sample`.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::Args;
@@ -10,15 +15,125 @@ use clap::Args;
 /// Arguments of `mrtwin info`.
 #[derive(Debug, Args)]
 pub struct InfoArgs {
-    /// A CSV recording in the format of PHYSICS.md.
-    #[arg(value_name = "FILE.csv")]
+    /// A CSV recording in the format of PHYSICS.md, a rosbag2 bag directory or a .mcap file.
+    #[arg(value_name = "FILE.csv|BAG")]
     pub input: PathBuf,
 }
 
 /// Print a summary of a recording.
 pub fn run(args: &InfoArgs) -> Result<()> {
+    if bridge::is_bag_path(&args.input) {
+        return bag_info(&args.input);
+    }
     let rec = bridge::recording::read_csv(&args.input)
         .with_context(|| format!("cannot use {} as a recording", args.input.display()))?;
+    print_recording(&rec, &args.input);
+    Ok(())
+}
+
+/// Largest gap and the number of gaps > 2× the median period of sorted times \[ns\];
+/// with the median period. `None` with fewer than 2 times.
+pub fn gap_stats(times_ns: &[u64]) -> Option<(f64, f64, usize)> {
+    if times_ns.len() < 2 {
+        return None;
+    }
+    let mut t = times_ns.to_vec();
+    t.sort_unstable();
+    let d: Vec<u64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    let mut sorted = d.clone();
+    sorted.sort_unstable();
+    let median = sorted[sorted.len() / 2];
+    let largest = *sorted.last().unwrap_or(&0);
+    let long = d.iter().filter(|&&x| x > 2 * median).count();
+    Some((median as f64 * 1e-9, largest as f64 * 1e-9, long))
+}
+
+fn bag_info(path: &Path) -> Result<()> {
+    let c = bridge::bag::read_bag(path)
+        .with_context(|| format!("cannot use {} as a bag", path.display()))?;
+    println!("bag           {}", path.display());
+    for f in &c.files {
+        let size = std::fs::metadata(f).map(|m| m.len()).unwrap_or(0);
+        println!("file          {} ({size} bytes)", f.display());
+    }
+    match &c.metadata {
+        Some(m) => println!(
+            "metadata      rosbag2 version {}, storage {}, {} messages, distro {}",
+            m.version,
+            m.storage_identifier,
+            m.message_count,
+            if m.ros_distro.is_empty() {
+                "?"
+            } else {
+                &m.ros_distro
+            }
+        ),
+        None => println!("metadata      none (bare MCAP)"),
+    }
+    let all: Vec<u64> = c
+        .topics
+        .iter()
+        .flat_map(|t| t.log_times_ns.iter().copied())
+        .collect();
+    let (first, last) = (all.iter().min(), all.iter().max());
+    println!("messages      {}", c.message_count());
+    if let (Some(a), Some(b)) = (first, last) {
+        println!(
+            "time          {:.6} s to {:.6} s ({:.3} s)",
+            *a as f64 * 1e-9,
+            *b as f64 * 1e-9,
+            (b - a) as f64 * 1e-9
+        );
+    }
+    println!("topics        {}", c.topics.len());
+    for t in &c.topics {
+        let mut line = format!("  {}  {}  {} msgs", t.name, t.type_name, t.count);
+        if let Some((median, largest, long)) = gap_stats(&t.log_times_ns) {
+            let (a, b) = (
+                t.log_times_ns.iter().min().unwrap(),
+                t.log_times_ns.iter().max().unwrap(),
+            );
+            line.push_str(&format!(
+                ", {:.3} s, {:.1} Hz, largest gap {:.3} ms, {long} gaps > 2x median",
+                (b - a) as f64 * 1e-9,
+                if median > 0.0 {
+                    1.0 / median
+                } else {
+                    f64::INFINITY
+                },
+                largest * 1e3
+            ));
+        }
+        if t.known.is_none() {
+            line.push_str("  [skipped]");
+        }
+        println!("{line}");
+    }
+    for s in &c.skipped {
+        println!(
+            "skipped       {} ({}): {} messages, {}",
+            s.name, s.type_name, s.count, s.reason
+        );
+    }
+    for n in &c.notes {
+        println!("note          {n}");
+    }
+    if c.topics
+        .iter()
+        .any(|t| t.known == Some(bridge::transport::Topic::Sample))
+    {
+        match bridge::bag::recording_from_contents(&c) {
+            Ok(rec) => {
+                println!("-- sensor/sample as a recording --");
+                print_recording(&rec, path);
+            }
+            Err(e) => println!("note          not usable as a recording: {e}"),
+        }
+    }
+    Ok(())
+}
+
+fn print_recording(rec: &bridge::Recording, input: &Path) {
     let s = &rec.samples;
     let n = s.len();
     let duration = s[n - 1].time_s - s[0].time_s;
@@ -47,7 +162,7 @@ pub fn run(args: &InfoArgs) -> Result<()> {
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
             (a.min(x.displacement_m), b.max(x.displacement_m))
         });
-    println!("recording     {}", args.input.display());
+    println!("recording     {}", input.display());
     println!("samples       {n}");
     println!(
         "time          {:.6} s to {:.6} s ({duration:.3} s)",
@@ -88,5 +203,4 @@ pub fn run(args: &InfoArgs) -> Result<()> {
             "absent"
         }
     );
-    Ok(())
 }

@@ -2,16 +2,28 @@
 //!
 //! * `simulate`: drive a damper model through a test-stand programme, write a CSV recording.
 //! * `yield-stress`: τ0 of the Bodner–Partom law of Skalski & Zalewski, eqs. (5.3), (5.5).
-//! * `demo`: the Skalski–Zalewski programme through two models: recordings, plots, summary.
+//! * `demo`: the live system (stand → twin over ROS 2, zenoh, iceoryx2) with a live line per second.
+//! * `paper`: the Skalski–Zalewski programme through two models: recordings, plots, summary.
+//! * `node`, `stand`, `launch`: the twin node, the test-stand node, a launch file of them.
 //! * `info`: what a CSV recording holds, after strict input checks.
+//! * `diagnose`: find the physics a model left out, add it, prove the held-out fit improves.
+//! * `convert`: CSV recording ↔ rosbag2 MCAP bag.
+//! * `identify`: the Skalski–Zalewski identification of n, R0 (5.3) and (5.5) from recordings.
 //!
 //! Errors are printed as `error: …` with their causes, and the exit code is 1.
 
-mod demo;
+mod convert;
+mod diagnose;
+mod identify;
 mod info;
+mod live;
 mod loops;
+mod nodes;
 mod numbers;
+mod paper;
 mod plot;
+mod record;
+mod replay;
 mod simulate;
 mod yield_stress;
 
@@ -29,14 +41,32 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Simulate a test-stand programme with a damper model and write the recording as CSV.
+    /// Simulate a test-stand programme with a damper model; write the recording as CSV or a bag.
     Simulate(Box<simulate::SimulateArgs>),
     /// Yield stress τ0 of the Bodner–Partom law (Skalski & Zalewski, eqs. 5.3 and 5.5).
     YieldStress(yield_stress::YieldStressArgs),
+    /// The live system: stand → twin over ROS 2, zenoh and iceoryx2, a live line per second.
+    Demo(live::DemoArgs),
     /// Run the Skalski–Zalewski programme on two models: CSVs, SVG plots and a summary.
-    Demo(demo::DemoArgs),
+    Paper(paper::PaperArgs),
+    /// The twin node: steps the model on live sensor samples, publishes prediction and health.
+    Node(nodes::NodeArgs),
+    /// The test-stand node: plays the simulator as a live sensor stream (real-time paced).
+    Stand(nodes::NodeArgs),
+    /// Start the nodes of a launch file (ROS 2 launch YAML style) and stop them on Ctrl-C.
+    Launch(nodes::LaunchArgs),
+    /// Replay a recording (bag or CSV) through the twin: outputs to CSV, a bag, or the transports.
+    Replay(replay::ReplayArgs),
+    /// Record sensor samples and twin outputs from the live system into a rosbag2 MCAP bag.
+    Record(record::RecordArgs),
     /// Check a CSV recording and summarise it: samples, rate, gaps, currents, force range.
     Info(info::InfoArgs),
+    /// Find the physics a baseline model leaves out, add it, and show the held-out fit improve.
+    Diagnose(diagnose::DiagnoseArgs),
+    /// Convert a recording between CSV and a rosbag2 MCAP bag (directory or .mcap).
+    Convert(convert::ConvertArgs),
+    /// Identify the Bodner–Partom law from recordings (Skalski & Zalewski: 5.3, 5.5).
+    Identify(identify::IdentifyArgs),
 }
 
 fn main() -> ExitCode {
@@ -44,8 +74,17 @@ fn main() -> ExitCode {
     let result = match &cli.command {
         Command::Simulate(args) => simulate::run(args),
         Command::YieldStress(args) => yield_stress::run(args),
-        Command::Demo(args) => demo::run(args),
+        Command::Demo(args) => live::run(args),
+        Command::Paper(args) => paper::run(args),
+        Command::Node(args) => nodes::run_twin(args),
+        Command::Stand(args) => nodes::run_stand(args),
+        Command::Launch(args) => nodes::run_launch(args),
+        Command::Replay(args) => replay::run(args),
+        Command::Record(args) => record::run(args),
         Command::Info(args) => info::run(args),
+        Command::Diagnose(args) => diagnose::run(args),
+        Command::Convert(args) => convert::run(args),
+        Command::Identify(args) => identify::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,5 +1,6 @@
 //! `mrtwin simulate`: drive one damper model through a test-stand programme and write
-//! the recording as CSV (PHYSICS.md format).
+//! the recording as CSV (PHYSICS.md format), or as a rosbag2 MCAP bag when `--out` is a
+//! directory or a `.mcap` file (see `docs/bags.md`).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -105,9 +106,14 @@ pub struct SimulateArgs {
     /// Ambient temperature [°C] (default 25).
     #[arg(long, value_name = "C", allow_hyphen_values = true)]
     pub temperature: Option<f64>,
-    /// Output CSV file (its directory is created if needed).
-    #[arg(long, value_name = "FILE.csv")]
+    /// Output: FILE.csv (CSV recording), FILE.mcap (bare MCAP), anything else a rosbag2
+    /// bag directory with MCAP storage (`/<name>/sensor/sample`). Parent directories are
+    /// created if needed; a bag directory must not exist or be empty.
+    #[arg(long, value_name = "FILE.csv|DIR")]
     pub out: PathBuf,
+    /// Damper name in a bag: namespace of its topics and the samples' frame_id.
+    #[arg(long, value_name = "NAME", default_value = "damper")]
+    pub name: String,
 }
 
 /// The fluid laws of the two-chamber model, as named on the command line.
@@ -153,7 +159,7 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
     check_finite(&samples)?;
 
     let recording = to_recording(&samples, &args.out);
-    write_recording(&args.out, &recording)?;
+    let what = crate::convert::write_output(&args.out, &recording, &args.name)?;
 
     let peak = samples
         .iter()
@@ -161,7 +167,7 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
         .fold(0.0, f64::max);
     eprintln!(
         "simulate: model {kind}, effects {effects}: {} samples in {} segments, \
-         peak |F| = {peak:.1} N, simulated in {:.2} s; wrote {}",
+         peak |F| = {peak:.1} N, simulated in {:.2} s; wrote {what} {}",
         samples.len(),
         programme.segments.len(),
         elapsed.as_secs_f64(),

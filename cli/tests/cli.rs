@@ -90,7 +90,7 @@ fn help_lists_every_subcommand() {
     let o = mrtwin(&["--help"]);
     ok(&o);
     let text = stdout(&o);
-    for sub in ["simulate", "yield-stress", "demo"] {
+    for sub in ["simulate", "yield-stress", "paper"] {
         assert!(
             text.lines().any(|l| l.trim_start().starts_with(sub)),
             "{sub} missing from --help:\n{text}"
@@ -304,11 +304,11 @@ fn same_seed_same_bytes_other_seed_other_bytes() {
 }
 
 #[test]
-fn demo_writes_recordings_plots_and_summary() {
-    let dir = TempDir::new("demo_writes_recordings_plots_and_summary");
-    let out = dir.path("demo");
+fn paper_writes_recordings_plots_and_summary() {
+    let dir = TempDir::new("paper_writes_recordings_plots_and_summary");
+    let out = dir.path("paper");
     let o = mrtwin(&[
-        "demo".as_ref(),
+        "paper".as_ref(),
         "--duration".as_ref(),
         "0.5".as_ref(),
         "--out".as_ref(),

@@ -42,6 +42,7 @@
 //! and [`load_node_params`] applies such arguments in one go.
 
 mod error;
+pub mod launch;
 mod locate;
 mod overrides;
 mod ros_args;
@@ -53,6 +54,7 @@ use serde::de::DeserializeOwned;
 use serde_norway::{Mapping, Value};
 
 pub use error::ConfigError;
+pub use launch::{load_launch, parse_launch, LaunchEntry, LaunchFile, NodeEntry};
 pub use overrides::apply_param_overrides;
 pub use ros_args::{parse_ros_args, RosArgs};
 

@@ -22,7 +22,10 @@ pub mod standard;
 
 pub use damper::{DamperSample, TwinOutput, YieldEstimate};
 pub use ros::{Header, Time};
-pub use standard::{Clock, DiagnosticArray, DiagnosticStatus, Float64, KeyValue};
+pub use standard::{
+    Clock, DiagnosticArray, DiagnosticStatus, Float64, Float64MultiArray, KeyValue,
+    MultiArrayDimension, MultiArrayLayout, SAMPLE_ARRAY_LABEL,
+};
 
 /// A ROS 2 message type.
 pub trait RosMessage: serde::Serialize + serde::de::DeserializeOwned {

@@ -111,3 +111,91 @@ impl RosMessage for DiagnosticArray {
         )
     }
 }
+
+/// `std_msgs/msg/MultiArrayDimension`.
+#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct MultiArrayDimension {
+    /// Label of the dimension.
+    pub label: String,
+    /// Size of the dimension.
+    pub size: u32,
+    /// Stride of the dimension.
+    pub stride: u32,
+}
+
+/// `std_msgs/msg/MultiArrayLayout`.
+#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct MultiArrayLayout {
+    /// Dimensions.
+    pub dim: Vec<MultiArrayDimension>,
+    /// Padding elements at the front of data.
+    pub data_offset: u32,
+}
+
+/// `std_msgs/msg/Float64MultiArray`: the standard-type form of a damper sample, for
+/// publishers without our message package (plain rclpy, `ros2 topic pub`). One dimension
+/// whose label lists the channels: [`SAMPLE_ARRAY_LABEL`].
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct Float64MultiArray {
+    /// Layout.
+    pub layout: MultiArrayLayout,
+    /// Values.
+    pub data: Vec<f64>,
+}
+
+/// The label of the single dimension of a damper sample as `Float64MultiArray`: the
+/// channels in order, SI units.
+pub const SAMPLE_ARRAY_LABEL: &str =
+    "time_s,displacement_m,velocity_m_s,force_N,current_A,temperature_C";
+
+impl RosMessage for Float64MultiArray {
+    const TYPE_NAME: &'static str = "std_msgs/msg/Float64MultiArray";
+    fn definition() -> String {
+        join_definitions(
+            "MultiArrayLayout layout\nfloat64[] data\n",
+            &[
+                (
+                    "std_msgs/MultiArrayLayout",
+                    "MultiArrayDimension[] dim\nuint32 data_offset\n",
+                ),
+                (
+                    "std_msgs/MultiArrayDimension",
+                    "string label\nuint32 size\nuint32 stride\n",
+                ),
+            ],
+        )
+    }
+}
+
+impl Float64MultiArray {
+    /// A damper sample from its standard-type form; the error says what does not fit.
+    pub fn to_damper_sample(&self, frame_id: &str) -> Result<crate::DamperSample, String> {
+        let label = self
+            .layout
+            .dim
+            .first()
+            .map(|d| d.label.as_str())
+            .unwrap_or("");
+        if self.layout.dim.len() != 1 || label != SAMPLE_ARRAY_LABEL {
+            return Err(format!(
+                "a damper sample as Float64MultiArray needs one dimension labelled '{SAMPLE_ARRAY_LABEL}', got {:?}",
+                self.layout.dim.iter().map(|d| d.label.as_str()).collect::<Vec<_>>()
+            ));
+        }
+        let off = self.layout.data_offset as usize;
+        let d = self.data.get(off..off + 6).ok_or_else(|| {
+            format!(
+                "needs 6 values after data_offset {off}, got {}",
+                self.data.len()
+            )
+        })?;
+        Ok(crate::DamperSample {
+            header: Header::at(d[0], frame_id),
+            displacement: d[1],
+            velocity: d[2],
+            force: d[3],
+            current: d[4],
+            temperature: d[5],
+        })
+    }
+}

@@ -32,7 +32,8 @@ pub fn python() -> PathBuf {
 }
 
 /// Run `python -c SCRIPT args…` with a time limit; returns stdout, panics with stderr on
-/// failure or timeout.
+/// failure or timeout. Output is drained while the script runs, so a chatty script never
+/// blocks on a full pipe.
 pub fn run_python(script: &str, args: &[&str], timeout: std::time::Duration) -> String {
     use std::io::Read;
     use std::process::{Command, Stdio};
@@ -44,22 +45,131 @@ pub fn run_python(script: &str, args: &[&str], timeout: std::time::Duration) -> 
         .stderr(Stdio::piped())
         .spawn()
         .expect("start python");
+    let mut so = child.stdout.take().expect("stdout");
+    let mut se = child.stderr.take().expect("stderr");
+    let out = std::thread::spawn(move || {
+        let mut s = String::new();
+        so.read_to_string(&mut s).ok();
+        s
+    });
+    let err = std::thread::spawn(move || {
+        let mut s = String::new();
+        se.read_to_string(&mut s).ok();
+        s
+    });
     let deadline = std::time::Instant::now() + timeout;
-    loop {
+    let status = loop {
         if let Some(status) = child.try_wait().expect("wait python") {
-            let mut out = String::new();
-            let mut err = String::new();
-            child.stdout.take().unwrap().read_to_string(&mut out).ok();
-            child.stderr.take().unwrap().read_to_string(&mut err).ok();
-            assert!(status.success(), "python failed ({status}):\n{err}\n{out}");
-            return out;
+            break status;
         }
         if std::time::Instant::now() > deadline {
             child.kill().ok();
-            let mut err = String::new();
-            child.stderr.take().unwrap().read_to_string(&mut err).ok();
+            child.wait().ok();
+            let err = err.join().unwrap_or_default();
             panic!("python did not finish within {timeout:?}:\n{err}");
         }
         std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    let out = out.join().unwrap_or_default();
+    let err = err.join().unwrap_or_default();
+    assert!(status.success(), "python failed ({status}):\n{err}\n{out}");
+    out
+}
+
+/// A scratch directory under the target dir, removed on drop.
+pub struct TempDir(PathBuf);
+
+impl TempDir {
+    /// A fresh, empty directory named after the test.
+    pub fn new(test: &str) -> Self {
+        let dir = std::env::temp_dir().join(format!("mrtwin-{test}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("create temp dir");
+        Self(dir)
+    }
+
+    /// A path inside it.
+    pub fn path(&self, name: &str) -> PathBuf {
+        self.0.join(name)
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// A free loopback TCP port (for a test's own zenoh endpoint).
+pub fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .expect("bind a loopback port")
+        .port()
+}
+
+/// A child process that is killed when the guard drops (a failing test leaves nothing
+/// running).
+pub struct ChildGuard(pub Option<std::process::Child>);
+
+impl ChildGuard {
+    /// Start `cmd` with its stdout and stderr captured.
+    pub fn spawn(cmd: &mut std::process::Command) -> Self {
+        use std::process::Stdio;
+        Self(Some(
+            cmd.stdout(Stdio::piped())
+                .stderr(Stdio::piped())
+                .spawn()
+                .expect("start child"),
+        ))
+    }
+
+    /// Wait at most `timeout` for the child to exit; returns (success, stdout, stderr).
+    /// Kills it and panics on timeout.
+    pub fn wait(mut self, timeout: std::time::Duration) -> (bool, String, String) {
+        use std::io::Read;
+        let mut child = self.0.take().expect("child present");
+        let deadline = std::time::Instant::now() + timeout;
+        let status = loop {
+            if let Some(s) = child.try_wait().expect("wait child") {
+                break s;
+            }
+            if std::time::Instant::now() > deadline {
+                child.kill().ok();
+                let mut err = String::new();
+                if let Some(mut e) = child.stderr.take() {
+                    e.read_to_string(&mut err).ok();
+                }
+                panic!("child did not exit within {timeout:?}; stderr:\n{err}");
+            }
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        };
+        let mut out = String::new();
+        let mut err = String::new();
+        if let Some(mut o) = child.stdout.take() {
+            o.read_to_string(&mut out).ok();
+        }
+        if let Some(mut e) = child.stderr.take() {
+            e.read_to_string(&mut err).ok();
+        }
+        (status.success(), out, err)
+    }
+
+    /// Send SIGINT (Ctrl-C).
+    pub fn interrupt(&self) {
+        if let Some(c) = &self.0 {
+            let _ = std::process::Command::new("kill")
+                .args(["-INT", &c.id().to_string()])
+                .status();
+        }
+    }
+}
+
+impl Drop for ChildGuard {
+    fn drop(&mut self) {
+        if let Some(mut c) = self.0.take() {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
     }
 }

@@ -82,4 +82,7 @@ pub trait DamperModel: Send {
     /// Advance by `dt` seconds to the instant where `input` was taken. The first call
     /// after construction resets the model at `input` and integrates nothing.
     fn step(&mut self, input: &DamperInput, dt: f64) -> DamperOutput;
+    /// A copy with the same state, for what-if predictions (a planned current) that
+    /// must not advance the twin itself.
+    fn clone_box(&self) -> Box<dyn DamperModel>;
 }

@@ -71,6 +71,10 @@ impl BinghamDamper {
 }
 
 impl DamperModel for BinghamDamper {
+    fn clone_box(&self) -> Box<dyn DamperModel> {
+        Box::new(self.clone())
+    }
+
     fn id(&self) -> &'static str {
         "bingham"
     }

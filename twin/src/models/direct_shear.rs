@@ -134,6 +134,10 @@ impl DirectShear {
 }
 
 impl DamperModel for DirectShear {
+    fn clone_box(&self) -> Box<dyn DamperModel> {
+        Box::new(self.clone())
+    }
+
     fn id(&self) -> &'static str {
         "direct-shear"
     }

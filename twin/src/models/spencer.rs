@@ -181,6 +181,10 @@ impl Spencer {
 }
 
 impl DamperModel for Spencer {
+    fn clone_box(&self) -> Box<dyn DamperModel> {
+        Box::new(self.clone())
+    }
+
     fn id(&self) -> &'static str {
         "spencer"
     }

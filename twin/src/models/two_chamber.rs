@@ -461,6 +461,10 @@ impl TwoChamber {
 }
 
 impl DamperModel for TwoChamber {
+    fn clone_box(&self) -> Box<dyn DamperModel> {
+        Box::new(self.clone())
+    }
+
     fn id(&self) -> &'static str {
         "two-chamber"
     }

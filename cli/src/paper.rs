@@ -1,4 +1,4 @@
-//! `mrtwin demo`: the Skalski–Zalewski programme through the direct-shear and the
+//! `mrtwin paper`: the Skalski–Zalewski programme through the direct-shear and the
 //! two-chamber models, with recordings, loop plots, the first-loading τ–γ curves and a
 //! summary table (also as `summary.json`).
 
@@ -32,11 +32,11 @@ const FIRST_LOADING_GAMMA_MAX: f64 = 3.0;
 /// Sample rate of the first-loading runs \[Hz\]: fine enough for a smooth curve.
 const FIRST_LOADING_RATE_HZ: f64 = 10_000.0;
 
-/// Arguments of `mrtwin demo`.
+/// Arguments of `mrtwin paper`.
 #[derive(Debug, Args)]
-pub struct DemoArgs {
+pub struct PaperArgs {
     /// Directory for the recordings, plots and summary.json (created if needed).
-    #[arg(long, value_name = "DIR", default_value = "out/demo")]
+    #[arg(long, value_name = "DIR", default_value = "out/paper")]
     pub out: PathBuf,
     /// Duration of each segment [s] (default: the paper's 5 s).
     #[arg(long, value_name = "S", allow_hyphen_values = true)]
@@ -118,7 +118,7 @@ struct FirstLoading {
 }
 
 /// Run the subcommand.
-pub fn run(args: &DemoArgs) -> Result<()> {
+pub fn run(args: &PaperArgs) -> Result<()> {
     let started = Instant::now();
     let programme = programme(args.duration)?;
     let out = &args.out;

@@ -1,0 +1,283 @@
+//! Round trip of the twin's iceoryx2 control service next to iceoryx2's own raw round trip
+//! for the same payload, in the same run.
+//!
+//! * raw: iceoryx2's request–response API directly (`ipc::Service`), a server thread that
+//!   echoes the request's sample into a `ShmPrediction`.
+//! * twin: `bridge::iceoryx2::{ControlServer, ControlClient}` with a real twin model (the
+//!   paper's two-chamber damper, compressibility + gas spring) stepped once per request
+//!   on a 1 kHz stroke timeline.
+//!
+//! Server in a thread of this process, client in the main thread; both busy poll. The two
+//! cases alternate in rounds (only the active case's server polls; the other sleeps) so
+//! both see the same machine load. Run:
+//!
+//! ```text
+//! cargo bench -p bridge --features iceoryx2 --bench iceoryx2_loop [-- REQUESTS ROUNDS]
+//! ```
+//! (default 100 000 requests per case in 100 alternating rounds of 1 000).
+
+#[path = "../tests/support/twin_handler.rs"]
+mod twin_handler;
+
+use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use bridge::iceoryx2::controller::quantile;
+use bridge::iceoryx2::{ControlClient, ControlServer, Iceoryx2Config};
+use iceoryx2::prelude::*;
+use msgs::shm::{ShmPrediction, ShmRequest, ShmSample};
+use twin_handler::TwinHandler;
+
+const IDLE: u8 = 0;
+const RAW: u8 = 1;
+const TWIN: u8 = 2;
+const WRAP: u8 = 3;
+const STOP: u8 = 4;
+
+fn request(i: u64) -> ShmRequest {
+    let t = i as f64 * 1e-3;
+    let w = 2.0 * std::f64::consts::PI * 2.0;
+    ShmRequest {
+        kind: ShmRequest::SAMPLE,
+        reserved: 0,
+        sample: ShmSample {
+            seq: i,
+            time_ns: i as i64 * 1_000_000,
+            displacement_m: 0.01 * (w * t).sin(),
+            velocity_m_s: 0.01 * w * (w * t).cos(),
+            force_n: f64::NAN,
+            current_a: 1.0,
+            temperature_c: f64::NAN,
+        },
+    }
+}
+
+fn echo(r: &ShmRequest) -> ShmPrediction {
+    ShmPrediction {
+        seq: r.sample.seq,
+        time_ns: r.sample.time_ns,
+        predicted_force_n: r.sample.force_n,
+        ..ShmPrediction::default()
+    }
+}
+
+/// Wait while `state` is none of `mine`, sleeping (another case is measured meanwhile);
+/// returns the case to serve, `None` at the end.
+fn parked(state: &AtomicU8, mine: &[u8]) -> Option<u8> {
+    loop {
+        match state.load(Ordering::Acquire) {
+            STOP => return None,
+            s if mine.contains(&s) => return Some(s),
+            _ => std::thread::sleep(Duration::from_micros(200)),
+        }
+    }
+}
+
+/// Make `case` the polling server and wait (at most 10 s) until it polls. `ready` is
+/// cleared first: a server that slept through the other case's whole round (loaded
+/// machine) is still in its polling loop and re-announces itself from there.
+fn switch_to(state: &AtomicU8, ready: &AtomicU8, case: u8) -> Result<(), String> {
+    ready.store(IDLE, Ordering::Release);
+    state.store(case, Ordering::Release);
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while ready.load(Ordering::Acquire) != case {
+        if Instant::now() > deadline {
+            return Err(format!("server {case} did not start polling within 10 s"));
+        }
+        std::thread::yield_now();
+    }
+    Ok(())
+}
+
+/// (p50, p90, p99, max, mean).
+fn stats(mut v: Vec<f64>) -> (f64, f64, f64, f64, f64) {
+    v.sort_by(f64::total_cmp);
+    let mean = v.iter().sum::<f64>() / v.len() as f64;
+    (
+        quantile(&v, 0.5),
+        quantile(&v, 0.9),
+        quantile(&v, 0.99),
+        *v.last().unwrap(),
+        mean,
+    )
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    set_log_level(LogLevel::Error);
+    let args: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with("--"))
+        .collect();
+    let total: u64 = args.first().map_or(Ok(100_000), |s| s.parse())?;
+    let rounds: u64 = args.get(1).map_or(Ok(100), |s| s.parse())?;
+    let per_round = total / rounds;
+    let prefix = format!("mrtwin/bench-{}", std::process::id());
+    let cfg = Iceoryx2Config::default().with_prefix(format!("{prefix}/twin"));
+    let raw_name = format!("{prefix}/raw/control");
+    let state = Arc::new(AtomicU8::new(IDLE));
+    let ready = Arc::new(AtomicU8::new(IDLE));
+
+    // Raw iceoryx2 echo server.
+    let raw_server = {
+        let (state, ready) = (state.clone(), ready.clone());
+        let name = raw_name.clone();
+        std::thread::spawn(move || -> Result<(), String> {
+            let node = NodeBuilder::new()
+                .create::<ipc::Service>()
+                .map_err(|e| format!("{e:?}"))?;
+            let service = node
+                .service_builder(&ServiceName::new(&name).map_err(|e| format!("{e:?}"))?)
+                .request_response::<ShmRequest, ShmPrediction>()
+                .open_or_create()
+                .map_err(|e| format!("{e:?}"))?;
+            let server = service
+                .server_builder()
+                .create()
+                .map_err(|e| format!("{e:?}"))?;
+            while parked(&state, &[RAW]).is_some() {
+                while state.load(Ordering::Relaxed) == RAW {
+                    ready.store(RAW, Ordering::Relaxed);
+                    if let Some(active) = server.receive().map_err(|e| format!("{e:?}"))? {
+                        let reply = echo(active.payload());
+                        active.send_copy(reply).map_err(|e| format!("{e:?}"))?;
+                    }
+                }
+            }
+            Ok(())
+        })
+    };
+    // The twin's control server: echo (wrapper overhead) or a real model step.
+    let twin_server = {
+        let (state, ready) = (state.clone(), ready.clone());
+        let mut server = ControlServer::new(&cfg)?;
+        std::thread::spawn(move || -> Result<u64, String> {
+            let mut twin = TwinHandler::paper();
+            let mut model = |r: &ShmRequest| twin.handle(r);
+            let mut echo = echo;
+            while let Some(case) = parked(&state, &[TWIN, WRAP]) {
+                let handler: &mut dyn FnMut(&ShmRequest) -> ShmPrediction =
+                    if case == TWIN { &mut model } else { &mut echo };
+                while state.load(Ordering::Relaxed) == case {
+                    ready.store(case, Ordering::Relaxed);
+                    server.serve_pending(handler).map_err(|e| e.to_string())?;
+                }
+            }
+            Ok(server.answered())
+        })
+    };
+
+    // Clients.
+    let node = NodeBuilder::new().create::<ipc::Service>()?;
+    let raw_service = node
+        .service_builder(&ServiceName::new(&raw_name)?)
+        .request_response::<ShmRequest, ShmPrediction>()
+        .open_or_create()?;
+    let raw_client = raw_service.client_builder().create()?;
+    let mut twin_client = ControlClient::new(&cfg)?;
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while raw_service.dynamic_config().number_of_servers() == 0 && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    twin_client.wait_for_server(Duration::from_secs(10))?;
+
+    let timeout = Duration::from_secs(1);
+    let mut raw_lat = Vec::with_capacity(total as usize);
+    let mut twin_lat = Vec::with_capacity(total as usize);
+    let mut wrap_lat = Vec::with_capacity(total as usize);
+    let mut twin_seq = 0u64;
+    let mut wrap_seq = 0u64;
+    let mut force_sum = 0.0;
+    for round in 0..=rounds {
+        // Round 0 is the warm-up (1 000 requests each, not recorded).
+        let n = if round == 0 { 1000 } else { per_round };
+        switch_to(&state, &ready, RAW)?;
+        for i in 0..n {
+            let t0 = Instant::now();
+            let pending = raw_client.send_copy(request(i))?;
+            let reply = loop {
+                if let Some(r) = pending.receive()? {
+                    break *r.payload();
+                }
+                if t0.elapsed() > timeout {
+                    return Err(format!("raw: no reply to {i} within {timeout:?}").into());
+                }
+            };
+            let dt = t0.elapsed().as_secs_f64() * 1e6;
+            assert_eq!(reply.seq, i);
+            if round > 0 {
+                raw_lat.push(dt);
+            }
+        }
+        switch_to(&state, &ready, WRAP)?;
+        for _ in 0..n {
+            let req = request(wrap_seq);
+            wrap_seq += 1;
+            let t0 = Instant::now();
+            let reply = twin_client.request(&req, timeout)?;
+            let dt = t0.elapsed().as_secs_f64() * 1e6;
+            assert_eq!(reply.seq, req.sample.seq);
+            if round > 0 {
+                wrap_lat.push(dt);
+            }
+        }
+        switch_to(&state, &ready, TWIN)?;
+        for _ in 0..n {
+            let req = request(twin_seq);
+            twin_seq += 1;
+            let t0 = Instant::now();
+            let reply = twin_client.request(&req, timeout)?;
+            let dt = t0.elapsed().as_secs_f64() * 1e6;
+            assert_eq!(reply.seq, req.sample.seq);
+            assert!(reply.predicted_force_n.is_finite() && reply.rejected == 0);
+            force_sum += reply.predicted_force_n * req.sample.velocity_m_s;
+            if round > 0 {
+                twin_lat.push(dt);
+            }
+        }
+    }
+    state.store(STOP, Ordering::Release);
+    raw_server.join().expect("raw server")?;
+    let answered = twin_server.join().expect("twin server")?;
+    assert_eq!(answered, twin_seq + wrap_seq);
+    assert!(
+        force_sum > 0.0,
+        "the damper must dissipate over whole strokes"
+    );
+
+    // The model alone on the same requests (no transport), for the breakdown.
+    let mut alone = TwinHandler::paper();
+    let mut model_lat = Vec::with_capacity(twin_seq as usize);
+    for i in 0..twin_seq {
+        let req = request(i);
+        let t0 = Instant::now();
+        let reply = alone.handle(&req);
+        model_lat.push(t0.elapsed().as_secs_f64() * 1e6);
+        assert!(reply.predicted_force_n.is_finite());
+    }
+
+    println!("iceoryx2 request-response round trip, 64 B request / 56 B reply; server in a thread of this process, client in the main thread, both busy polling; {} requests per case in {rounds} alternating rounds", raw_lat.len());
+    println!("| case | p50 µs | p90 µs | p99 µs | max µs | mean µs |");
+    println!("|---|---|---|---|---|---|");
+    let rows = [
+        ("raw iceoryx2 echo (reference)", raw_lat),
+        ("ControlServer/ControlClient, echo handler", wrap_lat),
+        (
+            "ControlServer/ControlClient, two-chamber paper model step",
+            twin_lat,
+        ),
+        ("(model step alone, no transport)", model_lat),
+    ];
+    let mut p99 = Vec::new();
+    for (name, lat) in rows {
+        let (a, b, c, d, e) = stats(lat);
+        println!("| {name} | {a:.2} | {b:.2} | {c:.2} | {d:.1} | {e:.2} |");
+        p99.push(c);
+    }
+    println!(
+        "p99 / raw p99: echo wrapper {:.2}, twin {:.2} (target ≤ 3)",
+        p99[1] / p99[0],
+        p99[2] / p99[0]
+    );
+    Ok(())
+}

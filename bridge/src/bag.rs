@@ -1,1 +1,0 @@
-//! rosbag2 directories with MCAP storage (issue 4).

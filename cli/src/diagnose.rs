@@ -1,0 +1,305 @@
+//! `mrtwin diagnose`: find the physics the baseline damper model leaves out, add it, and
+//! show the fit improve on held-out data (the `diagnose` crate does the work; this module
+//! reads the input and writes the JSON, the Markdown report and the SVG plots).
+
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use ::diagnose::data::Prepared;
+use ::diagnose::report::render_markdown;
+use ::diagnose::{Diagnosis, Signals, Thresholds};
+use anyhow::{bail, Context, Result};
+use bridge::recording::Recording;
+use clap::Args;
+
+use crate::plot::{write_svg, Figure, Panel, Series, PALETTE};
+
+/// The baselines `--baseline` accepts.
+pub const BASELINES: [&str; 1] = ["bingham-flow"];
+
+/// Arguments of `mrtwin diagnose`.
+#[derive(Debug, Args)]
+pub struct DiagnoseArgs {
+    /// A CSV recording in the format of PHYSICS.md (several segments may follow each other).
+    #[arg(value_name = "INPUT")]
+    pub input: PathBuf,
+    /// Baseline model: `bingham-flow`, the incompressible Bingham flow-mode damper with yield
+    /// force and viscous coefficient free at each current level.
+    #[arg(long, value_name = "MODEL", default_value = "bingham-flow")]
+    pub baseline: String,
+    /// Write the diagnosis as JSON here.
+    #[arg(long, value_name = "OUT.json")]
+    pub json: Option<PathBuf>,
+    /// Write SVG plots into this directory (created if missing).
+    #[arg(long, value_name = "DIR")]
+    pub plots: Option<PathBuf>,
+    /// Write the Markdown report here (it is printed to stdout otherwise).
+    #[arg(long, value_name = "OUT.md")]
+    pub report: Option<PathBuf>,
+}
+
+/// Read the recording to diagnose.
+pub fn load_input(path: &Path) -> Result<Recording> {
+    bridge::recording::read_csv(path)
+        .with_context(|| format!("cannot use {} as a recording", path.display()))
+}
+
+fn signals(rec: &Recording) -> Signals {
+    let s = &rec.samples;
+    Signals {
+        time_s: s.iter().map(|x| x.time_s).collect(),
+        displacement_m: s.iter().map(|x| x.displacement_m).collect(),
+        velocity_m_s: s.iter().map(|x| x.velocity_m_s).collect(),
+        force_n: s.iter().map(|x| x.force_n).collect(),
+        current_a: s.iter().map(|x| x.current_a).collect(),
+    }
+}
+
+/// Run the diagnosis.
+pub fn run(args: &DiagnoseArgs) -> Result<()> {
+    if !BASELINES.contains(&args.baseline.as_str()) {
+        bail!(
+            "unknown baseline '{}' (expected one of: {})",
+            args.baseline,
+            BASELINES.join(", ")
+        );
+    }
+    let rec = load_input(&args.input)?;
+    let name = args.input.display().to_string();
+    let dg = ::diagnose::diagnose(&signals(&rec), &name, &Thresholds::default())
+        .with_context(|| format!("cannot diagnose {name}"))?;
+    let md = render_markdown(&dg.report);
+    if let Some(path) = &args.json {
+        let text = serde_json::to_string_pretty(&dg.report).context("cannot encode JSON")?;
+        fs::write(path, text + "\n").with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    if let Some(dir) = &args.plots {
+        fs::create_dir_all(dir)
+            .with_context(|| format!("cannot create plot directory {}", dir.display()))?;
+        plots(&dg, dir)?;
+    }
+    match &args.report {
+        Some(path) => {
+            fs::write(path, &md).with_context(|| format!("cannot write {}", path.display()))?;
+            let found = dg.found();
+            println!(
+                "{}: {}; held-out RMS {:.2} N (baseline) → {:.2} N (final); report {}",
+                name,
+                if found.is_empty() {
+                    "nothing missing".to_string()
+                } else {
+                    format!("found {}", found.join(", "))
+                },
+                dg.report.baseline.holdout_rmse_n,
+                dg.report.final_model.holdout_rmse_n,
+                path.display()
+            );
+        }
+        None => print!("{md}"),
+    }
+    Ok(())
+}
+
+/// Up to three held-out strokes at distinct current levels (lowest, middle, highest), each
+/// the one where the baseline misses most.
+fn chosen_strokes(d: &Prepared, base: &[f64]) -> Vec<(f64, Vec<usize>)> {
+    let nk = d.knots.len();
+    let picks: Vec<usize> = match nk {
+        1 => vec![0],
+        2 => vec![0, 1],
+        _ => vec![0, nk / 2, nk - 1],
+    };
+    let nearest = |i: f64| {
+        (0..nk)
+            .min_by(|&a, &b| (d.knots[a] - i).abs().total_cmp(&(d.knots[b] - i).abs()))
+            .unwrap_or(0)
+    };
+    let mut strokes: Vec<Vec<usize>> = vec![Vec::new(); d.cycles];
+    for j in 0..d.len() {
+        if d.holdout[j] {
+            strokes[d.cycle[j]].push(j);
+        }
+    }
+    let mut out = Vec::new();
+    for k in picks {
+        let best = strokes
+            .iter()
+            .filter(|s| s.len() > 8 && s.iter().all(|&j| nearest(d.i[j]) == k))
+            .max_by(|a, b| {
+                let e = |s: &Vec<usize>| s.iter().map(|&j| (d.f[j] - base[j]).powi(2)).sum::<f64>();
+                e(a).total_cmp(&e(b))
+            });
+        if let Some(s) = best {
+            out.push((d.knots[k], s.clone()));
+        }
+    }
+    out
+}
+
+fn loop_figure(dg: &Diagnosis, x_of: impl Fn(usize) -> f64, x_label: &str) -> Figure {
+    let d = &dg.data;
+    let panels = chosen_strokes(d, &dg.baseline_force)
+        .into_iter()
+        .map(|(i, s)| Panel {
+            title: format!("held-out stroke at {i:.2} A"),
+            series: vec![
+                Series {
+                    label: "measured".into(),
+                    colour: PALETTE[0],
+                    points: s.iter().map(|&j| (x_of(j), d.f[j])).collect(),
+                    dashed: false,
+                },
+                Series {
+                    label: "baseline".into(),
+                    colour: PALETTE[1],
+                    points: s.iter().map(|&j| (x_of(j), dg.baseline_force[j])).collect(),
+                    dashed: true,
+                },
+                Series {
+                    label: "final model".into(),
+                    colour: PALETTE[2],
+                    points: s.iter().map(|&j| (x_of(j), dg.final_force[j])).collect(),
+                    dashed: false,
+                },
+            ],
+            legend: None,
+        })
+        .collect();
+    Figure {
+        x_label: x_label.into(),
+        y_label: "force (N)".into(),
+        panels,
+    }
+}
+
+fn plots(dg: &Diagnosis, dir: &Path) -> Result<()> {
+    let d = &dg.data;
+    write_svg(
+        &dir.join("loops_force_velocity.svg"),
+        &loop_figure(dg, |j| d.v[j], "velocity (m/s)"),
+    )?;
+    write_svg(
+        &dir.join("loops_force_displacement.svg"),
+        &loop_figure(dg, |j| 1e3 * d.x[j], "displacement (mm)"),
+    )?;
+    // Residual by stroke phase: 1 near reversal, 2 accelerating, 3 decelerating,
+    // 4 compression, 5 rebound.
+    let rp = &dg.report.residual_by_phase;
+    let series = |label: &str, c, f: &dyn Fn(usize) -> f64| Series {
+        label: label.into(),
+        colour: c,
+        points: (0..rp.len()).map(|k| ((k + 1) as f64, f(k))).collect(),
+        dashed: false,
+    };
+    write_svg(
+        &dir.join("residual_by_phase.svg"),
+        &Figure {
+            x_label: "1 near reversal, 2 accelerating, 3 decelerating, 4 compression, 5 rebound"
+                .into(),
+            y_label: "RMS residual (N)".into(),
+            panels: vec![Panel {
+                title: "residual by stroke phase".into(),
+                series: vec![
+                    series("baseline", PALETTE[1], &|k| rp[k].baseline_rms_n),
+                    series("final model", PALETTE[2], &|k| rp[k].final_rms_n),
+                ],
+                legend: None,
+            }],
+        },
+    )?;
+    let time_effects = ["thermal_softening", "field_lag"];
+    let involved = dg
+        .report
+        .findings
+        .iter()
+        .map(|f| f.effect.as_str())
+        .chain(
+            dg.report
+                .undecided
+                .iter()
+                .flat_map(|u| u.effects.iter().map(|s| s.as_str())),
+        )
+        .any(|e| time_effects.contains(&e));
+    if involved {
+        write_svg(&dir.join("residual_over_time.svg"), &time_figure(dg))?;
+    }
+    Ok(())
+}
+
+/// Residual over time (1 s RMS windows) and the mean signed residual after current steps.
+// Several per-sample arrays are read with one index: range loops are clearer.
+#[allow(clippy::needless_range_loop)]
+fn time_figure(dg: &Diagnosis) -> Figure {
+    let d = &dg.data;
+    let n = d.len();
+    let windows = |pred: &[f64]| {
+        let mut pts = Vec::new();
+        let mut start = 0;
+        while start < n {
+            let mut end = start;
+            while end < n && d.t[end] - d.t[start] < 1.0 {
+                end += 1;
+            }
+            let ms = (start..end)
+                .map(|j| (d.f[j] - pred[j]).powi(2))
+                .sum::<f64>()
+                / (end - start) as f64;
+            pts.push((0.5 * (d.t[start] + d.t[end - 1]), ms.sqrt()));
+            start = end;
+        }
+        pts
+    };
+    // Mean of residual · sgn(v) · sgn(ΔI) against time since the last current step.
+    let imax = d.i.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let tol = (0.02 * imax).max(1e-3);
+    let after_step = |pred: &[f64]| {
+        let bins = 50usize;
+        let mut acc = vec![(0.0, 0usize); bins];
+        let mut last: Option<(f64, f64)> = None;
+        for j in 1..n {
+            if (d.i[j] - d.i[j - 1]).abs() > tol {
+                last = Some((d.t[j], (d.i[j] - d.i[j - 1]).signum()));
+            }
+            if let Some((ts, sg)) = last {
+                let b = ((d.t[j] - ts) / 0.002) as usize;
+                if b < bins {
+                    acc[b].0 += (d.f[j] - pred[j]) * d.v[j].signum() * sg;
+                    acc[b].1 += 1;
+                }
+            }
+        }
+        acc.iter()
+            .enumerate()
+            .filter(|(_, a)| a.1 > 0)
+            .map(|(b, a)| (2.0 * b as f64, a.0 / a.1 as f64))
+            .collect::<Vec<_>>()
+    };
+    let mk = |label: &str, c, pts| Series {
+        label: label.into(),
+        colour: c,
+        points: pts,
+        dashed: false,
+    };
+    Figure {
+        x_label: "time (s) | time since current step (ms)".into(),
+        y_label: "residual (N)".into(),
+        panels: vec![
+            Panel {
+                title: "RMS residual over time (1 s windows)".into(),
+                series: vec![
+                    mk("baseline", PALETTE[1], windows(&dg.baseline_force)),
+                    mk("final model", PALETTE[2], windows(&dg.final_force)),
+                ],
+                legend: None,
+            },
+            Panel {
+                title: "mean residual · sgn v · sgn ΔI after current steps".into(),
+                series: vec![
+                    mk("baseline", PALETTE[1], after_step(&dg.baseline_force)),
+                    mk("final model", PALETTE[2], after_step(&dg.final_force)),
+                ],
+                legend: None,
+            },
+        ],
+    }
+}

@@ -1,0 +1,262 @@
+//! `mrtwin demo`: the whole system on one machine, no hardware, no ROS install, no
+//! server. The test stand plays the simulator as a live 1 kHz sensor stream on ROS 2,
+//! zenoh and iceoryx2; the twin node takes the samples from one of them (zenoh by
+//! default), steps its model in lockstep and publishes on all three; a monitor counts
+//! what arrives on each transport; a local controller asks the twin what-if questions
+//! over the iceoryx2 request–response service. One live line per second, then a summary.
+
+use std::net::TcpListener;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use anyhow::{bail, Context, Result};
+use bridge::iceoryx2::ControlClient;
+use bridge::transport::{Message, Topic};
+use clap::Args;
+use msgs::shm::{ShmRequest, ShmSample};
+use node::config::TwinNodeParams;
+use node::runner::{LiveStats, StopWhen, TwinNode};
+use node::stand::{StandNode, StandParams};
+use node::transports::{open, TransportKind, TransportSettings};
+
+/// Arguments of `mrtwin demo`.
+#[derive(Debug, Args)]
+pub struct DemoArgs {
+    /// How long to run [s].
+    #[arg(long, value_name = "S", default_value_t = 10.0)]
+    pub duration: f64,
+    /// Transport the twin takes the samples from.
+    #[arg(long, value_name = "ros2|zenoh|iceoryx2", default_value = "zenoh")]
+    pub input: TransportKind,
+    /// ROS domain id.
+    #[arg(long, value_name = "ID", default_value_t = 0)]
+    pub domain_id: u16,
+    /// Sample rate of the stand [Hz].
+    #[arg(long, value_name = "HZ", default_value_t = 1000.0)]
+    pub rate: f64,
+}
+
+/// One line per second.
+pub fn live_line(s: &LiveStats) -> String {
+    let tau = s.estimate.map_or("τ0 —".to_string(), |e| {
+        format!("τ0 {:.1} ± {:.1} kPa", e.tau0_pa / 1e3, e.tau0_std_pa / 1e3)
+    });
+    format!(
+        "t={:>5.1} s  {:>6.0} samples/s  I {:>4.2} A  F meas {:>8.1} N  pred {:>8.1} N  rms residual {:>6.1} N  {}  health {}",
+        s.elapsed_s,
+        s.rate_hz,
+        s.current_a,
+        s.measured_force_n,
+        s.predicted_force_n,
+        s.residual_rms_n,
+        tau,
+        s.level.name()
+    )
+}
+
+fn free_port() -> Result<u16> {
+    Ok(TcpListener::bind("127.0.0.1:0")
+        .context("find a free loopback port for zenoh")?
+        .local_addr()?
+        .port())
+}
+
+/// `mrtwin demo`.
+pub fn run(args: &DemoArgs) -> Result<()> {
+    if !(args.duration.is_finite() && args.duration > 0.0 && args.duration <= 86_400.0) {
+        bail!("--duration must be in (0, 86400] s, got {}", args.duration);
+    }
+    if !(args.rate.is_finite() && args.rate > 0.0 && args.rate <= 20_000.0) {
+        bail!("--rate must be in (0, 20000] Hz, got {}", args.rate);
+    }
+    let stop = crate::nodes::stop_flag()?;
+    let port = free_port()?;
+    let damper = format!("demo{}", std::process::id());
+    let all = TransportKind::ALL.to_vec();
+    // The twin listens on a loopback port; the others connect to it (no multicast needed).
+    let mut twin = TwinNodeParams {
+        damper: damper.clone(),
+        transports: all.clone(),
+        input: args.input,
+        ..Default::default()
+    };
+    twin.zenoh.multicast_scouting = false;
+    twin.zenoh.listen = vec![format!("tcp/127.0.0.1:{port}")];
+    twin.ros2.domain_id = args.domain_id;
+    let mut stand = StandParams {
+        damper: damper.clone(),
+        transports: all.clone(),
+        rate_hz: args.rate,
+        ..Default::default()
+    };
+    stand.zenoh.multicast_scouting = false;
+    stand.zenoh.connect = vec![format!("tcp/127.0.0.1:{port}")];
+    stand.ros2.domain_id = args.domain_id;
+    stand.ros2.node_name = "mrtwin_stand".into();
+
+    println!(
+        "mrtwin demo: stand ({} Hz, {} model, currents {:?} A, frequencies {:?} Hz) → twin ({} in; ROS 2 domain {}, zenoh tcp/127.0.0.1:{port}, iceoryx2 mrtwin/{damper}) for {} s",
+        args.rate, stand.model, stand.currents_a, stand.frequencies_hz, args.input, args.domain_id, args.duration
+    );
+    let mut node = TwinNode::new(twin.clone(), "/mrtwin_twin").context("start the twin node")?;
+    let mut stand_node =
+        StandNode::new(stand.clone(), "/mrtwin_stand").context("start the stand node")?;
+
+    // A monitor that counts the twin's outputs on every transport.
+    let settings = TransportSettings {
+        damper: damper.clone(),
+        node_name: "mrtwin_monitor".into(),
+        namespace: "/".into(),
+        ros2: stand.ros2.clone(),
+        zenoh: stand.zenoh.clone(),
+        iceoryx2: twin.iceoryx2.clone(),
+    };
+    let counts: Arc<[AtomicU64; 3]> = Arc::new(Default::default());
+    let done = Arc::new(AtomicBool::new(false));
+    let mut monitors = Vec::new();
+    for (i, &k) in all.iter().enumerate() {
+        monitors.push((
+            i,
+            open(k, &settings, &[], &[Topic::Output])
+                .with_context(|| format!("open the {k} monitor"))?,
+        ));
+    }
+    let monitor = {
+        let counts = counts.clone();
+        let done = done.clone();
+        std::thread::spawn(move || {
+            let mut inbox = Vec::new();
+            while !done.load(Ordering::Relaxed) {
+                for (i, t) in &mut monitors {
+                    inbox.clear();
+                    let _ = t.poll(&mut inbox);
+                    let n = inbox
+                        .iter()
+                        .filter(|m| matches!(m, Message::Output(_)))
+                        .count();
+                    counts[*i].fetch_add(n as u64, Ordering::Relaxed);
+                }
+                std::thread::sleep(Duration::from_millis(1));
+            }
+        })
+    };
+    // A local controller asking "what force with 2 A now?" at 100 Hz over iceoryx2.
+    let whatif = Arc::new([AtomicU64::new(0), AtomicU64::new(0)]);
+    let controller = {
+        let cfg = settings.iceoryx2_config();
+        let done = done.clone();
+        let whatif = whatif.clone();
+        std::thread::spawn(move || -> Result<()> {
+            let mut client = ControlClient::new(&cfg)?;
+            client.wait_for_server(Duration::from_secs(5))?;
+            let mut seq = 0;
+            while !done.load(Ordering::Relaxed) {
+                seq += 1;
+                let now = SystemTime::now()
+                    .duration_since(UNIX_EPOCH)
+                    .map_or(0, |d| d.as_nanos() as i64);
+                let req = ShmRequest {
+                    kind: ShmRequest::PLANNED_CURRENT,
+                    reserved: 0,
+                    sample: ShmSample {
+                        seq,
+                        time_ns: now,
+                        current_a: 2.0,
+                        temperature_c: f64::NAN,
+                        ..Default::default()
+                    },
+                };
+                if let Ok(r) = client.request(&req, Duration::from_millis(100)) {
+                    whatif[usize::from(r.rejected != 0)].fetch_add(1, Ordering::Relaxed);
+                }
+                std::thread::sleep(Duration::from_millis(10));
+            }
+            Ok(())
+        })
+    };
+    let duration = Duration::from_secs_f64(args.duration);
+    let stand_stop = done.clone();
+    let stand_thread =
+        std::thread::spawn(move || stand_node.run(Some(&stand_stop), Some(duration)));
+    let deadline = Instant::now() + duration + Duration::from_millis(300);
+    let mut prev = [0u64; 3];
+    let summary = node.run(
+        StopWhen {
+            flag: Some(&stop),
+            deadline: Some(deadline),
+        },
+        &mut |s| {
+            let now: Vec<u64> = counts.iter().map(|c| c.load(Ordering::Relaxed)).collect();
+            println!(
+                "{}  | out/s ros2 {} zenoh {} iceoryx2 {}  what-if {}",
+                live_line(s),
+                now[0] - prev[0],
+                now[1] - prev[1],
+                now[2] - prev[2],
+                whatif[0].load(Ordering::Relaxed)
+            );
+            prev = [now[0], now[1], now[2]];
+        },
+    );
+    done.store(true, Ordering::Relaxed);
+    let stand_summary = stand_thread
+        .join()
+        .map_err(|_| anyhow::anyhow!("stand thread panicked"))??;
+    std::thread::sleep(Duration::from_millis(200));
+    let _ = monitor.join();
+    let ctrl = controller
+        .join()
+        .map_err(|_| anyhow::anyhow!("controller thread panicked"))?;
+    let c = summary.counters;
+    println!("\nsummary");
+    println!("  stand: {} samples generated, {} messages published on {} transports, max lateness {:.2} ms",
+        stand_summary.generated, stand_summary.published, all.len(), stand_summary.max_lateness_s * 1e3);
+    println!(
+        "  twin:  {} samples received on {}, {} stepped, {} dropped, {} gaps",
+        c.received,
+        args.input,
+        c.accepted,
+        c.non_finite + c.duplicates + c.out_of_order,
+        c.gaps
+    );
+    println!(
+        "  outputs received: ros2 {}  zenoh {}  iceoryx2 {}",
+        counts[0].load(Ordering::Relaxed),
+        counts[1].load(Ordering::Relaxed),
+        counts[2].load(Ordering::Relaxed)
+    );
+    println!(
+        "  what-if requests over iceoryx2: {} answered, {} rejected{}",
+        whatif[0].load(Ordering::Relaxed),
+        whatif[1].load(Ordering::Relaxed),
+        match ctrl {
+            Ok(()) => String::new(),
+            Err(e) => format!(" (controller: {e:#})"),
+        }
+    );
+    let curve = node.pipeline().curve();
+    if curve.is_empty() {
+        println!(
+            "  yield stress: no estimate yet (needs post-yield strokes both ways at a current)"
+        );
+    } else {
+        for e in curve {
+            println!(
+                "  yield stress at {:.2} A: {:.1} ± {:.1} kPa",
+                e.current_a,
+                e.tau0_pa / 1e3,
+                e.tau0_std_pa / 1e3
+            );
+        }
+    }
+    for ch in &summary.checks {
+        println!(
+            "  health {:<24} {:<5} {}",
+            ch.name,
+            ch.level.name(),
+            ch.message
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,279 @@
+//! `mrtwin replay INPUT`: feed a recording (bag or CSV) through the twin — the same
+//! pipeline as the live node, driven by the recorded timestamps — and write the twin's
+//! outputs to CSV or a new bag, or publish them (with `/clock`) on the transports.
+//!
+//! Deterministic: the pipeline uses no wall clock and no randomness, the CSV writes every
+//! number in Rust's shortest round-trip form, and bag log times are the sample stamps, so
+//! two replays of the same input give byte-identical output.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context, Result};
+use bridge::bag::{BagWriter, BagWriterOptions};
+use bridge::transport::{Message, Topic};
+use clap::Args;
+use launch_config::load_params;
+use msgs::{Clock, Float64, Time};
+use node::conditioning::SensorSample;
+use node::config::{model_selection, TwinNodeParams, TWIN_NODE};
+use node::diagnostics::{diagnostic_array, level_byte};
+use node::pipeline::{PipelineConfig, Processed, TwinPipeline};
+use node::runner::{twin_output, yield_msg};
+use node::transports::{open, TransportSettings};
+
+/// Arguments of `mrtwin replay`.
+#[derive(Debug, Args)]
+pub struct ReplayArgs {
+    /// Recording: a rosbag2 directory, an .mcap file or a CSV file.
+    pub input: PathBuf,
+    /// Pace: `max` (as fast as possible), `realtime`, or a factor of real time (e.g. 2).
+    #[arg(long, value_name = "max|realtime|FACTOR", default_value = "max")]
+    pub rate: String,
+    /// Publish the outputs and /clock on the transports of the parameter file.
+    #[arg(long)]
+    pub publish: bool,
+    /// Output: FILE.csv (one row per input sample) or a bag directory.
+    #[arg(long, value_name = "FILE.csv|DIR")]
+    pub out: Option<PathBuf>,
+    /// Twin parameter file (ROS 2 convention, section `mrtwin_twin`).
+    #[arg(long, value_name = "FILE")]
+    pub params: Option<PathBuf>,
+    /// Model (overrides the parameter file).
+    #[arg(long, value_name = "NAME")]
+    pub model: Option<String>,
+    /// Effects of the two-chamber model (overrides the parameter file).
+    #[arg(long, value_name = "IDS")]
+    pub effects: Option<String>,
+}
+
+/// Columns of the CSV output.
+pub const CSV_HEADER: &str = "time_s,current_A,force_N,force_predicted_N,residual_N,tau0_Pa,tau0_std_Pa,health_level,displacement_m,velocity_m_s,dissipated_power_W,fluid_temperature_C,dropped";
+
+fn pace(rate: &str) -> Result<Option<f64>> {
+    match rate {
+        "max" => Ok(None),
+        "realtime" => Ok(Some(1.0)),
+        f => match f.parse::<f64>() {
+            Ok(x) if x.is_finite() && x > 0.0 => Ok(Some(x)),
+            _ => bail!("--rate must be max, realtime or a positive factor, got '{f}'"),
+        },
+    }
+}
+
+/// Twin parameters of a replay.
+pub fn replay_params(args: &ReplayArgs) -> Result<TwinNodeParams> {
+    let mut p: TwinNodeParams = match &args.params {
+        Some(f) => load_params(f, TWIN_NODE)?,
+        None => TwinNodeParams::default(),
+    };
+    if let Some(m) = &args.model {
+        p.model = m.clone();
+    }
+    if let Some(e) = &args.effects {
+        p.effects = e.clone();
+    }
+    p.validate()?;
+    Ok(p)
+}
+
+/// The pipeline of a replay.
+pub fn replay_pipeline(p: &TwinNodeParams) -> Result<TwinPipeline> {
+    let (model, params, effects) = model_selection(&p.model, &p.effects, p.model_params())?;
+    Ok(TwinPipeline::new(PipelineConfig {
+        model,
+        params,
+        effects,
+        ambient_temperature_c: p.ambient_temperature_c,
+        conditioning: p.conditioning.clone(),
+        estimator: p.estimator.enabled.then(|| p.estimator.settings.clone()),
+        health: p.health.clone(),
+    })?)
+}
+
+enum Sink {
+    None,
+    Csv(PathBuf, String),
+    Bag(Box<BagWriter>),
+}
+
+fn ns(t: f64) -> u64 {
+    Time::from_secs_f64(t).as_nanos().max(0) as u64
+}
+
+/// `mrtwin replay`.
+pub fn run(args: &ReplayArgs) -> Result<()> {
+    let pace = pace(&args.rate)?;
+    let params = replay_params(args)?;
+    let rec = bridge::open_recording(&args.input)
+        .with_context(|| format!("read {}", args.input.display()))?;
+    if rec.is_empty() {
+        bail!("{}: no samples to replay", args.input.display());
+    }
+    let mut pipeline = replay_pipeline(&params)?;
+    let mut sink = match &args.out {
+        None => Sink::None,
+        Some(p) if p.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv")) => {
+            let mut s = String::with_capacity(rec.len() * 160);
+            s.push_str(CSV_HEADER);
+            s.push('\n');
+            Sink::Csv(p.clone(), s)
+        }
+        Some(p) => Sink::Bag(Box::new(
+            BagWriter::create(p, BagWriterOptions::default())
+                .with_context(|| format!("create bag {}", p.display()))?,
+        )),
+    };
+    let mut transports = Vec::new();
+    if args.publish {
+        let settings = TransportSettings {
+            damper: params.damper.clone(),
+            node_name: "mrtwin_replay".into(),
+            namespace: "/".into(),
+            ros2: params.ros2.clone(),
+            zenoh: params.zenoh.clone(),
+            iceoryx2: params.iceoryx2.clone(),
+        };
+        let topics = [
+            Topic::Output,
+            Topic::PredictedForce,
+            Topic::YieldEstimate,
+            Topic::Diagnostics,
+            Topic::Clock,
+        ];
+        for &k in &params.transports {
+            transports.push(open(k, &settings, &topics, &[])?);
+        }
+    }
+    let damper = params.damper.clone();
+    let start = Instant::now();
+    let t0 = rec.samples[0].time_s;
+    let mut next_yield = t0;
+    let mut next_diag = t0;
+    let mut stepped = 0u64;
+    for s in &rec.samples {
+        if let Some(factor) = pace {
+            let due = start + Duration::from_secs_f64(((s.time_s - t0) / factor).max(0.0));
+            let now = Instant::now();
+            if due > now {
+                std::thread::sleep(due - now);
+            }
+        }
+        let sample = SensorSample::from_recording(s);
+        let processed = pipeline.process(&sample);
+        let mut out_msgs: Vec<Message> = Vec::new();
+        match processed {
+            Processed::Stepped(step) => {
+                stepped += 1;
+                out_msgs.push(Message::Output(twin_output(
+                    &step,
+                    &damper,
+                    pipeline.model_id(),
+                )));
+                out_msgs.push(Message::PredictedForce(Float64 {
+                    data: step.output.force_n,
+                }));
+                if s.time_s >= next_yield {
+                    next_yield = s.time_s + params.yield_estimate_period_s;
+                    out_msgs.push(Message::YieldEstimate(yield_msg(&pipeline, &step, &damper)));
+                }
+            }
+            Processed::Dropped(_) => {}
+        }
+        if s.time_s >= next_diag {
+            next_diag = s.time_s + params.diagnostics_period_s;
+            out_msgs.push(Message::Diagnostics(diagnostic_array(
+                "/mrtwin_replay",
+                &damper,
+                s.time_s,
+                &pipeline.checks(),
+            )));
+        }
+        match &mut sink {
+            Sink::None => {}
+            Sink::Csv(_, buf) => csv_row(buf, &sample, &processed, &pipeline),
+            Sink::Bag(w) => {
+                let t = ns(s.time_s);
+                w.write_message(&damper, &Message::Sample(sample.to_msg(&damper)), t)?;
+                for m in &out_msgs {
+                    w.write_message(&damper, m, t)?;
+                }
+            }
+        }
+        if !transports.is_empty() {
+            out_msgs.push(Message::Clock(Clock {
+                clock: Time::from_secs_f64(s.time_s),
+            }));
+            for t in &mut transports {
+                for m in &out_msgs {
+                    t.publish(m)?;
+                }
+            }
+        }
+    }
+    let elapsed = start.elapsed().as_secs_f64();
+    match sink {
+        Sink::None => {}
+        Sink::Csv(path, buf) => write_atomic(&path, buf.as_bytes())?,
+        Sink::Bag(w) => {
+            w.finish()?;
+        }
+    }
+    let c = pipeline.counters();
+    eprintln!(
+        "replayed {} samples ({} stepped, {} dropped: NaN {}, duplicate {}, out of order {}; {} gaps) with {} in {:.3} s ({:.0} samples/s)",
+        rec.len(),
+        stepped,
+        c.non_finite + c.duplicates + c.out_of_order,
+        c.non_finite,
+        c.duplicates,
+        c.out_of_order,
+        c.gaps,
+        pipeline.model_id(),
+        elapsed,
+        rec.len() as f64 / elapsed.max(1e-9)
+    );
+    Ok(())
+}
+
+fn csv_row(buf: &mut String, s: &SensorSample, p: &Processed, pipeline: &TwinPipeline) {
+    let nan = f64::NAN;
+    let (pred, res, power, temp, est, level, dropped) = match p {
+        Processed::Stepped(st) => (
+            st.output.force_n,
+            st.residual_n,
+            st.output.dissipated_power_w,
+            st.output.fluid_temperature_c,
+            st.estimate,
+            st.health,
+            0,
+        ),
+        Processed::Dropped(_) => (nan, nan, nan, nan, None, pipeline.health_level(), 1),
+    };
+    let _ = writeln!(
+        buf,
+        "{},{},{},{},{},{},{},{},{},{},{},{},{}",
+        s.time_s,
+        s.current_a,
+        s.force_n,
+        pred,
+        res,
+        est.map_or(nan, |e| e.tau0_pa),
+        est.map_or(nan, |e| e.tau0_std_pa),
+        level_byte(level),
+        s.displacement_m,
+        s.velocity_m_s,
+        power,
+        temp,
+        dropped
+    );
+}
+
+/// Write through a temporary file and rename, so a reader never sees half a file.
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let tmp = path.with_extension("csv.tmp");
+    std::fs::write(&tmp, bytes).with_context(|| format!("write {}", tmp.display()))?;
+    std::fs::rename(&tmp, path).with_context(|| format!("write {}", path.display()))?;
+    Ok(())
+}

@@ -1,0 +1,207 @@
+//! End-to-end tests of `mrtwin diagnose`: JSON shape, report and plots, exit code 0 with
+//! and without findings, bad input rejected with a clear message.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use bridge::recording::{write_csv, Recording, Sample};
+use diagnose::study::{generate, Scenario, YieldLaw};
+use twin::Effect;
+
+fn mrtwin<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_mrtwin"))
+        .args(args)
+        .output()
+        .expect("cannot run the mrtwin binary")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// A fresh temporary directory for one test, removed when dropped.
+struct TempDir(PathBuf);
+
+impl TempDir {
+    fn new(test: &str) -> Self {
+        let dir =
+            std::env::temp_dir().join(format!("mrtwin-diagnose-{test}-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&dir);
+        fs::create_dir_all(&dir).expect("cannot create temporary directory");
+        Self(dir)
+    }
+    fn path(&self, name: &str) -> PathBuf {
+        self.0.join(name)
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = fs::remove_dir_all(&self.0);
+    }
+}
+
+/// Write the study recording of `scn` (seed 7) as CSV.
+fn write_scenario(scn: &Scenario, path: &Path) {
+    let (sig, _) = generate(scn, 7);
+    let samples = (0..sig.time_s.len())
+        .map(|k| Sample {
+            time_s: sig.time_s[k],
+            displacement_m: sig.displacement_m[k],
+            velocity_m_s: sig.velocity_m_s[k],
+            force_n: sig.force_n[k],
+            current_a: sig.current_a[k],
+            temperature_c: None,
+        })
+        .collect();
+    let rec = Recording {
+        samples,
+        velocity_derived: false,
+        has_temperature: false,
+        source: scn.name.clone(),
+    };
+    write_csv(path, &rec).expect("cannot write the test recording");
+}
+
+fn json(path: &Path) -> serde_json::Value {
+    let text = fs::read_to_string(path).expect("JSON written");
+    serde_json::from_str(&text).expect("valid JSON")
+}
+
+#[test]
+fn finds_field_lag_with_json_report_and_plots() {
+    let dir = TempDir::new("lag");
+    let csv = dir.path("lag.csv");
+    write_scenario(&Scenario::hidden(Effect::FieldLag), &csv);
+    let (out_json, out_md, plots) = (dir.path("d.json"), dir.path("d.md"), dir.path("plots"));
+    let o = mrtwin(&[
+        "diagnose".as_ref(),
+        csv.as_os_str(),
+        "--json".as_ref(),
+        out_json.as_os_str(),
+        "--report".as_ref(),
+        out_md.as_os_str(),
+        "--plots".as_ref(),
+        plots.as_os_str(),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "stderr: {}", stderr(&o));
+    let j = json(&out_json);
+    assert_eq!(j["samples"], 30_000);
+    assert!(j["input"].as_str().unwrap().ends_with("lag.csv"));
+    for key in ["train_rmse_N", "holdout_rmse_N"] {
+        assert!(j["baseline"][key].as_f64().unwrap() > 0.0);
+        assert!(j["final"][key].as_f64().unwrap() > 0.0);
+    }
+    assert!(j["baseline"]["model"].is_string() && j["final"]["model"].is_string());
+    let mismatch = j["mismatch"].as_array().unwrap();
+    assert!(!mismatch.is_empty());
+    for m in mismatch {
+        assert!(m["region"].is_string() && m["description"].is_string());
+        let share = m["share_of_residual_energy"].as_f64().unwrap();
+        assert!((0.0..=1.0).contains(&share));
+    }
+    let findings = j["findings"].as_array().unwrap();
+    assert_eq!(findings.len(), 1, "{findings:?}");
+    let f = &findings[0];
+    assert_eq!(f["effect"], "field_lag");
+    assert!(f["explanation"].is_string());
+    let tau = &f["parameters"]["field_time_constant"];
+    assert_eq!(tau["unit"], "ms");
+    let (v, lo, hi) = (
+        tau["value"].as_f64().unwrap(),
+        tau["ci95"][0].as_f64().unwrap(),
+        tau["ci95"][1].as_f64().unwrap(),
+    );
+    assert!(lo > 0.0 && lo <= v && v <= hi, "{tau}");
+    let ev = &f["evidence"];
+    assert!(
+        ev["holdout_rmse_after_N"].as_f64().unwrap()
+            < ev["holdout_rmse_before_N"].as_f64().unwrap()
+    );
+    assert!(ev["delta_bic"].as_f64().unwrap() < 0.0);
+    assert!(j["undecided"].as_array().unwrap().is_empty());
+    let md = fs::read_to_string(&out_md).unwrap();
+    assert!(md.contains("**field_lag**"), "{md}");
+    for svg in [
+        "loops_force_velocity.svg",
+        "loops_force_displacement.svg",
+        "residual_by_phase.svg",
+        "residual_over_time.svg",
+    ] {
+        let text = fs::read_to_string(plots.join(svg)).unwrap_or_else(|_| panic!("{svg}"));
+        assert!(
+            text.contains("<svg") && text.contains("final model"),
+            "{svg}"
+        );
+    }
+}
+
+#[test]
+fn nothing_found_still_exits_zero() {
+    let dir = TempDir::new("null");
+    let csv = dir.path("null.csv");
+    let scn = Scenario {
+        name: "null".into(),
+        hidden: vec![],
+        yield_law: YieldLaw::Saturating,
+    };
+    write_scenario(&scn, &csv);
+    let out_json = dir.path("d.json");
+    let o = mrtwin(&[
+        "diagnose".as_ref(),
+        csv.as_os_str(),
+        "--json".as_ref(),
+        out_json.as_os_str(),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "stderr: {}", stderr(&o));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("Nothing is missing"), "{stdout}");
+    let j = json(&out_json);
+    assert!(j["findings"].as_array().unwrap().is_empty());
+    assert_eq!(
+        j["baseline"]["holdout_rmse_N"],
+        j["final"]["holdout_rmse_N"]
+    );
+}
+
+#[test]
+fn bad_input_fails_with_a_clear_message() {
+    let dir = TempDir::new("bad");
+    // Missing file.
+    let missing = dir.path("nope.csv");
+    let o = mrtwin(&["diagnose".as_ref(), missing.as_os_str()]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(e.starts_with("error: ") && e.contains("nope.csv"), "{e}");
+    // Missing column, named with the line.
+    let csv = dir.path("bad.csv");
+    fs::write(&csv, "time_s,displacement_m,force_N\n0,0,0\n0.001,0,0\n").unwrap();
+    let o = mrtwin(&["diagnose".as_ref(), csv.as_os_str()]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(e.contains("current_A") && e.contains("line 1"), "{e}");
+    // Valid CSV but far too short to diagnose.
+    let mut text = String::from("time_s,displacement_m,velocity_m_s,force_N,current_A\n");
+    for k in 0..50 {
+        let t = k as f64 * 0.001;
+        text.push_str(&format!("{t},{},{},{},1\n", 0.01 * t, 0.01, 10.0));
+    }
+    fs::write(&csv, text).unwrap();
+    let o = mrtwin(&["diagnose".as_ref(), csv.as_os_str()]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(
+        e.contains("cannot diagnose") && e.contains("only 50 samples"),
+        "{e}"
+    );
+    // Unknown baseline.
+    let o = mrtwin(&[
+        "diagnose".as_ref(),
+        csv.as_os_str(),
+        "--baseline".as_ref(),
+        "spencer".as_ref(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("unknown baseline 'spencer'"));
+}

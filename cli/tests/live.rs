@@ -1,0 +1,251 @@
+//! The live system against real peers: `mrtwin node` and `mrtwin stand` as separate
+//! processes, a Python eclipse-zenoh subscriber decoding with python `rosbags`, and an
+//! iceoryx2 controller in this test process (a separate process from the node).
+//!
+//! Every test has its own damper name, zenoh port and iceoryx2 service prefix, and every
+//! wait is bounded.
+
+use std::path::Path;
+use std::process::Command;
+use std::time::Duration;
+
+use bridge::iceoryx2::controller::{run_controller, ControllerOptions};
+use bridge::iceoryx2::Iceoryx2Config;
+use mrtwin_tests::{free_port, run_python, ChildGuard, TempDir};
+
+fn mrtwin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_mrtwin"))
+}
+
+fn write(path: &Path, text: &str) {
+    std::fs::write(path, text).expect("write parameter file");
+}
+
+/// Subscribes to `mrtwin/<damper>/**` for `seconds`, prints one JSON line per message:
+/// receive wall time, key and the decoded fields (CDR decoded by python `rosbags` from our
+/// .msg files).
+const ZENOH_LISTENER: &str = r#"
+import json, sys, time, threading
+import zenoh
+from rosbags.typesys import Stores, get_typestore, get_types_from_msg
+endpoint, damper, seconds, msgdir = sys.argv[1], sys.argv[2], float(sys.argv[3]), sys.argv[4]
+ts = get_typestore(Stores.ROS2_HUMBLE)
+types = {}
+for name in ["TwinOutput", "YieldEstimate", "DamperSample"]:
+    types.update(get_types_from_msg(open(f"{msgdir}/{name}.msg").read(), f"mrtwin_msgs/msg/{name}"))
+ts.register(types)
+kinds = {"twin/output": "mrtwin_msgs/msg/TwinOutput", "twin/yield_estimate": "mrtwin_msgs/msg/YieldEstimate",
+         "diagnostics": "diagnostic_msgs/msg/DiagnosticArray", "twin/predicted_force": "std_msgs/msg/Float64"}
+lock = threading.Lock()
+out = []
+def on_sample(s):
+    now = time.time()
+    key = str(s.key_expr)
+    rel = key.split(f"mrtwin/{damper}/", 1)[1]
+    if rel not in kinds:
+        return
+    m = ts.deserialize_cdr(bytes(s.payload.to_bytes()), kinds[rel])
+    rec = {"t": now, "key": rel}
+    if rel == "twin/output":
+        rec.update(stamp=m.header.stamp.sec + m.header.stamp.nanosec * 1e-9, predicted=m.predicted_force,
+                   measured=m.measured_force, residual=m.residual, model=m.model_id)
+    elif rel == "diagnostics":
+        rec.update(status={st.name: int(st.level) for st in m.status})
+    elif rel == "twin/yield_estimate":
+        rec.update(tau0=m.tau0, current=m.current)
+    with lock:
+        out.append(rec)
+conf = zenoh.Config()
+conf.insert_json5("mode", '"peer"')
+conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
+conf.insert_json5("scouting/multicast/enabled", "false")
+session = zenoh.open(conf)
+sub = session.declare_subscriber(f"mrtwin/{damper}/**", on_sample)
+print(json.dumps({"ready": time.time()}), flush=True)
+time.sleep(seconds)
+session.close()
+with lock:
+    for r in out:
+        print(json.dumps(r))
+"#;
+
+#[test]
+fn zenoh_peer_gets_twin_outputs_and_health_goes_stale_then_ok() {
+    let dir = TempDir::new("zenoh_stale");
+    let port = free_port();
+    let damper = format!("zs{}", std::process::id());
+    let twin_params = dir.path("twin.yaml");
+    write(
+        &twin_params,
+        &format!(
+            "mrtwin_twin:\n  ros__parameters:\n    damper: {damper}\n    model: two-chamber\n    transports: [zenoh]\n    input: zenoh\n    control_service: false\n    stale_after_s: 0.5\n    zenoh:\n      multicast_scouting: false\n      listen: [\"tcp/127.0.0.1:{port}\"]\n"
+        ),
+    );
+    let stand_params = dir.path("stand.yaml");
+    write(
+        &stand_params,
+        &format!(
+            "mrtwin_stand:\n  ros__parameters:\n    damper: {damper}\n    model: two-chamber\n    transports: [zenoh]\n    currents_a: [1.0]\n    frequencies_hz: [2.0]\n    segment_duration_s: 100.0\n    noise_n: 5.0\n    faults:\n      silence_at_s: 3.0\n      silence_for_s: 3.0\n    zenoh:\n      multicast_scouting: false\n      connect: [\"tcp/127.0.0.1:{port}\"]\n"
+        ),
+    );
+    let node = ChildGuard::spawn(mrtwin().args([
+        "node",
+        "--duration",
+        "13",
+        "--ros-args",
+        "--params-file",
+        twin_params.to_str().unwrap(),
+    ]));
+    std::thread::sleep(Duration::from_millis(500));
+    let msgdir = mrtwin_tests::repo_root().join("msgs/msg");
+    let listener = std::thread::spawn({
+        let endpoint = format!("tcp/127.0.0.1:{port}");
+        let damper = damper.clone();
+        move || {
+            run_python(
+                ZENOH_LISTENER,
+                &[&endpoint, &damper, "11", msgdir.to_str().unwrap()],
+                Duration::from_secs(40),
+            )
+        }
+    });
+    std::thread::sleep(Duration::from_millis(1500));
+    let stand = ChildGuard::spawn(mrtwin().args([
+        "stand",
+        "--duration",
+        "9",
+        "--ros-args",
+        "--params-file",
+        stand_params.to_str().unwrap(),
+    ]));
+    let (ok, _, err) = stand.wait(Duration::from_secs(30));
+    assert!(ok, "stand failed: {err}");
+    let out = listener.join().expect("listener thread");
+    let (ok, node_out, err) = node.wait(Duration::from_secs(30));
+    assert!(ok, "node failed: {err}");
+
+    let recs: Vec<serde_json::Value> = out
+        .lines()
+        .filter_map(|l| serde_json::from_str(l).ok())
+        .filter(|v: &serde_json::Value| v.get("key").is_some())
+        .collect();
+    let outputs: Vec<&serde_json::Value> =
+        recs.iter().filter(|r| r["key"] == "twin/output").collect();
+    // 9 s of stand minus 3 s of silence at 1 kHz; the listener joins late by ~1.5 s.
+    assert!(
+        outputs.len() > 4000,
+        "only {} twin outputs reached the zenoh peer; node: {node_out}",
+        outputs.len()
+    );
+    assert!(outputs.iter().all(|o| o["model"] == "two-chamber"));
+    let rms = (outputs
+        .iter()
+        .map(|o| o["residual"].as_f64().unwrap().powi(2))
+        .sum::<f64>()
+        / outputs.len() as f64)
+        .sqrt();
+    let peak = outputs
+        .iter()
+        .map(|o| o["measured"].as_f64().unwrap().abs())
+        .fold(0.0, f64::max);
+    assert!(
+        rms < 0.05 * peak,
+        "twin and stand run the same model: residual RMS {rms} N vs peak {peak} N"
+    );
+    assert!(
+        recs.iter().any(|r| r["key"] == "twin/yield_estimate"),
+        "no yield estimate"
+    );
+
+    // The silence: the largest gap between consecutive output stamps.
+    let stamps: Vec<f64> = outputs
+        .iter()
+        .map(|o| o["stamp"].as_f64().unwrap())
+        .collect();
+    let (i, gap) = stamps
+        .windows(2)
+        .enumerate()
+        .map(|(i, w)| (i, w[1] - w[0]))
+        .fold((0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
+    assert!(
+        gap > 2.5,
+        "no silence seen in the stamps (largest gap {gap} s)"
+    );
+    let silence_from = stamps[i];
+    let resumed_at = stamps[i + 1];
+    let stream_level = |r: &serde_json::Value| -> Option<i64> {
+        r.get("status")?
+            .as_object()?
+            .iter()
+            .find(|(k, _)| k.ends_with("sensor stream"))
+            .and_then(|(_, v)| v.as_i64())
+    };
+    let diags: Vec<(f64, i64)> = recs
+        .iter()
+        .filter_map(|r| Some((r["t"].as_f64()?, stream_level(r)?)))
+        .collect();
+    assert!(!diags.is_empty(), "no /diagnostics");
+    let stale = diags
+        .iter()
+        .find(|(t, l)| *t > silence_from && *l == 3)
+        .expect("health never went STALE");
+    assert!(
+        stale.0 - silence_from < 2.0,
+        "STALE {} s after the last sample",
+        stale.0 - silence_from
+    );
+    let back = diags
+        .iter()
+        .find(|(t, l)| *t > resumed_at && *l == 0)
+        .expect("health never came back to OK");
+    assert!(
+        back.0 - resumed_at < 2.0,
+        "OK {} s after samples resumed",
+        back.0 - resumed_at
+    );
+}
+
+#[test]
+fn iceoryx2_controller_process_runs_1khz_for_10s_against_the_node_without_loss() {
+    let dir = TempDir::new("ice_loop");
+    let prefix = format!("mrtwin/icetest{}", std::process::id());
+    let params = dir.path("twin.yaml");
+    write(
+        &params,
+        &format!(
+            "mrtwin_twin:\n  ros__parameters:\n    damper: ice{}\n    model: two-chamber\n    transports: [iceoryx2]\n    input: iceoryx2\n    control_service: true\n    iceoryx2:\n      service_prefix: {prefix}\n",
+            std::process::id()
+        ),
+    );
+    let node = ChildGuard::spawn(mrtwin().args([
+        "node",
+        "--duration",
+        "25",
+        "--ros-args",
+        "--params-file",
+        params.to_str().unwrap(),
+    ]));
+    let cfg = Iceoryx2Config {
+        service_prefix: prefix,
+        ..Default::default()
+    };
+    let summary = run_controller(
+        &cfg,
+        &ControllerOptions {
+            rate_hz: 1000.0,
+            seconds: 10.0,
+            server_timeout: Duration::from_secs(10),
+            ..Default::default()
+        },
+    )
+    .expect("controller loop");
+    node.interrupt();
+    let (ok, out, err) = node.wait(Duration::from_secs(20));
+    assert!(ok, "node failed: {err}");
+    assert_eq!(summary.samples, 10_000, "{summary:?}");
+    assert_eq!(summary.lost, 0, "{summary:?}");
+    assert_eq!(summary.timeouts, 0, "{summary:?}");
+    assert_eq!(summary.mismatched, 0, "{summary:?}");
+    assert_eq!(summary.rejected, 0, "{summary:?}");
+    assert!(out.contains("control requests"), "{out}");
+}

@@ -1,0 +1,657 @@
+//! The baseline damper model and its candidate extensions, evaluated with their Jacobian,
+//! and the Levenberg–Marquardt fit.
+//!
+//! Baseline (incompressible Bingham flow-mode damper, [`crate::bingham`]):
+//! `F = F_y(I) Φ(c(I) |v| / F_y(I)) sgn v`, with `F_y` and `c` free at each current knot
+//! and interpolated linearly in current between knots, so any τ0(I) and μ(I) fit.
+//!
+//! Candidates (each adds few parameters; no-effect value in brackets):
+//! * `seal_friction`: `+ F_c tanh(v / v_s)`, v_s = 1 % of the peak speed  \[F_c = 0\]
+//! * `gas_spring`: `+ F_0 + k x`  \[F_0 = 0 and k = 0\]
+//! * `fluid_inertia`: `+ m a`  \[m = 0\]
+//! * `thermal_softening`: `F_y, c ← (1 − β E(t)) F_y, c`, E the dissipated energy
+//!   ∫ F v dt measured since the start \[β = 0\]
+//! * `field_lag`: the fluid sees `I_eff`, `τ dI_eff/dt = I − I_eff`  \[τ = 0\]
+//! * `fluid_compressibility`: a chamber compliance C between piston and gap:
+//!   `C dF/dt = v − w(F)`, w the gap flow velocity that force F drives (inverse of the
+//!   baseline law), integrated implicitly (backward Euler)  \[C = 0\]
+
+use twin::Effect;
+
+use crate::bingham;
+use crate::data::Prepared;
+
+/// Where each parameter lives in the parameter vector.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Layout {
+    /// Number of current knots (F_y at 0..nk, c at nk..2nk).
+    pub nk: usize,
+    /// Effects in the model, in the order their parameters follow.
+    pub effects: Vec<Effect>,
+}
+
+/// One named parameter.
+#[derive(Debug, Clone, Copy)]
+pub struct ParamInfo {
+    /// Name in the report.
+    pub name: &'static str,
+    /// Unit in the report.
+    pub unit: &'static str,
+    /// Factor from SI to the reported unit.
+    pub scale: f64,
+    /// Value meaning "no effect".
+    pub no_effect: f64,
+    /// Sign of the physical direction (+1: must be positive; 0: either).
+    pub sign: f64,
+}
+
+/// Parameters an effect adds.
+pub fn effect_params(e: Effect) -> &'static [ParamInfo] {
+    const FRICTION: [ParamInfo; 1] = [ParamInfo {
+        name: "friction_force",
+        unit: "N",
+        scale: 1.0,
+        no_effect: 0.0,
+        sign: 1.0,
+    }];
+    const GAS: [ParamInfo; 2] = [
+        ParamInfo {
+            name: "force_offset",
+            unit: "N",
+            scale: 1.0,
+            no_effect: 0.0,
+            sign: 0.0,
+        },
+        ParamInfo {
+            name: "stiffness",
+            unit: "N/mm",
+            scale: 1e-3,
+            no_effect: 0.0,
+            sign: 0.0,
+        },
+    ];
+    const INERTIA: [ParamInfo; 1] = [ParamInfo {
+        name: "fluid_mass",
+        unit: "kg",
+        scale: 1.0,
+        no_effect: 0.0,
+        sign: 1.0,
+    }];
+    const THERMAL: [ParamInfo; 1] = [ParamInfo {
+        name: "softening_per_energy",
+        unit: "1/kJ",
+        scale: 1.0,
+        no_effect: 0.0,
+        sign: 1.0,
+    }];
+    const LAG: [ParamInfo; 1] = [ParamInfo {
+        name: "field_time_constant",
+        unit: "ms",
+        scale: 1e3,
+        no_effect: 0.0,
+        sign: 1.0,
+    }];
+    const COMPRESS: [ParamInfo; 1] = [ParamInfo {
+        name: "chamber_compliance",
+        unit: "mm/kN",
+        scale: 1e6,
+        no_effect: 0.0,
+        sign: 1.0,
+    }];
+    match e {
+        Effect::SealFriction => &FRICTION,
+        Effect::GasSpring => &GAS,
+        Effect::FluidInertia => &INERTIA,
+        Effect::ThermalSoftening => &THERMAL,
+        Effect::FieldLag => &LAG,
+        Effect::FluidCompressibility => &COMPRESS,
+    }
+}
+
+impl Layout {
+    /// Number of parameters.
+    pub fn len(&self) -> usize {
+        2 * self.nk
+            + self
+                .effects
+                .iter()
+                .map(|e| effect_params(*e).len())
+                .sum::<usize>()
+    }
+    /// Never empty (there is at least one knot).
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+    /// Index of the first parameter of `e`.
+    pub fn index(&self, e: Effect) -> Option<usize> {
+        let mut k = 2 * self.nk;
+        for &x in &self.effects {
+            if x == e {
+                return Some(k);
+            }
+            k += effect_params(x).len();
+        }
+        None
+    }
+    /// This layout with `e` added at the end.
+    pub fn with(&self, e: Effect) -> Layout {
+        let mut l = self.clone();
+        l.effects.push(e);
+        l
+    }
+    /// A readable name of the model.
+    pub fn name(&self) -> String {
+        let mut s =
+            "incompressible Bingham flow-mode damper, F_y and c per current knot".to_string();
+        for e in &self.effects {
+            s.push_str(" + ");
+            s.push_str(e.id());
+        }
+        s
+    }
+}
+
+/// Parameter `theta` for layout `to`, from the values of layout `from` (new ones at `init`).
+pub fn extend(from: &Layout, theta: &[f64], to: &Layout, init: &[(Effect, Vec<f64>)]) -> Vec<f64> {
+    let mut out = theta[..2 * from.nk].to_vec();
+    for &e in &to.effects {
+        if let Some(k) = from.index(e) {
+            out.extend_from_slice(&theta[k..k + effect_params(e).len()]);
+        } else if let Some((_, v)) = init.iter().find(|(x, _)| *x == e) {
+            out.extend_from_slice(v);
+        } else {
+            out.extend(std::iter::repeat_n(0.0, effect_params(e).len()));
+        }
+    }
+    out
+}
+
+/// Model predictions and (optionally) the Jacobian, row-major N × P.
+pub struct Evaluation {
+    /// Predicted force \[N\].
+    pub force: Vec<f64>,
+    /// ∂F/∂θ, row-major (empty when not asked for).
+    pub jac: Vec<f64>,
+}
+
+/// Knot segment and weight for current `i`: F(i) = (1 − λ) F[k] + λ F[k+1]; and dλ/di.
+fn knot_weights(knots: &[f64], i: f64) -> (usize, f64, f64) {
+    let nk = knots.len();
+    if nk == 1 || i <= knots[0] {
+        return (0, 0.0, 0.0);
+    }
+    if i >= knots[nk - 1] {
+        return (nk - 2, 1.0, 0.0);
+    }
+    let k = knots
+        .partition_point(|&x| x <= i)
+        .saturating_sub(1)
+        .min(nk - 2);
+    let w = knots[k + 1] - knots[k];
+    ((k), (i - knots[k]) / w, 1.0 / w)
+}
+
+const FY_MIN: f64 = 1e-3;
+const C_MIN: f64 = 1e-3;
+
+/// Evaluate the model with parameters `theta`.
+// Several per-sample arrays are read and written with one index: a range loop is clearer.
+#[allow(clippy::needless_range_loop)]
+pub fn evaluate(d: &Prepared, lay: &Layout, theta: &[f64], jac: bool) -> Evaluation {
+    let n = d.len();
+    let p = lay.len();
+    let nk = lay.nk;
+    let mut force = vec![0.0; n];
+    let mut jm = if jac { vec![0.0; n * p] } else { Vec::new() };
+    let ifr = lay.index(Effect::SealFriction);
+    let igas = lay.index(Effect::GasSpring);
+    let iin = lay.index(Effect::FluidInertia);
+    let ith = lay.index(Effect::ThermalSoftening);
+    let ilag = lay.index(Effect::FieldLag);
+    let icp = lay.index(Effect::FluidCompressibility);
+    let tau = ilag.map(|k| theta[k].max(0.0)).unwrap_or(0.0);
+    let comp = icp.map(|k| theta[k].max(0.0)).unwrap_or(0.0);
+    let mut i_eff = d.i[0];
+    let mut di_dtau = 0.0;
+    // Compressibility state: fluid force and its sensitivities.
+    let mut fl_prev = 0.0;
+    let mut s_prev = vec![0.0; if jac { p } else { 0 }];
+    let mut s_new = vec![0.0; if jac { p } else { 0 }];
+    // Sparse gradients of F_y and c at this sample: (index, value) lists.
+    let mut gfy: Vec<(usize, f64)> = Vec::with_capacity(4);
+    let mut gc: Vec<(usize, f64)> = Vec::with_capacity(4);
+    for j in 0..n {
+        let h = d.h[j];
+        // Effective current.
+        if ilag.is_some() && h > 0.0 && tau > 0.0 {
+            let e = (-h / tau).exp();
+            let alpha = 1.0 - e;
+            let dalpha = -e * h / (tau * tau);
+            let gap = d.i[j] - i_eff;
+            di_dtau = (1.0 - alpha) * di_dtau + dalpha * gap;
+            i_eff += alpha * gap;
+        } else {
+            i_eff = d.i[j];
+            di_dtau = 0.0;
+        }
+        let (k, lam, dlam) = knot_weights(&d.knots, i_eff);
+        let k2 = (k + 1).min(nk - 1);
+        let fy_raw = (1.0 - lam) * theta[k] + lam * theta[k2];
+        let c_raw = (1.0 - lam) * theta[nk + k] + lam * theta[nk + k2];
+        let dfy_di = (theta[k2] - theta[k]) * dlam;
+        let dc_di = (theta[nk + k2] - theta[nk + k]) * dlam;
+        let (scale, beta_e) = match ith {
+            Some(b) => ((1.0 - theta[b] * d.energy_kj[j]).max(0.05), d.energy_kj[j]),
+            None => (1.0, 0.0),
+        };
+        let fy = (scale * fy_raw).max(FY_MIN);
+        let c = (scale * c_raw).max(C_MIN);
+        if jac {
+            gfy.clear();
+            gc.clear();
+            gfy.push((k, scale * (1.0 - lam)));
+            gc.push((nk + k, scale * (1.0 - lam)));
+            if k2 != k {
+                gfy.push((k2, scale * lam));
+                gc.push((nk + k2, scale * lam));
+            }
+            if let Some(b) = ith {
+                gfy.push((b, -beta_e * fy_raw));
+                gc.push((b, -beta_e * c_raw));
+            }
+            if let Some(l) = ilag {
+                gfy.push((l, scale * dfy_di * di_dtau));
+                gc.push((l, scale * dc_di * di_dtau));
+            }
+        }
+        let v = d.v[j];
+        let row = if jac { j * p } else { 0 };
+        // Fluid force.
+        let fluid = if icp.is_some() && comp > 0.0 && h > 0.0 && j > 0 {
+            let (f_new, dwf, dwfy, dwc) = solve_compliance(fl_prev, v, h, comp, fy, c);
+            if jac {
+                let den = comp + h * dwf;
+                for q in 0..p {
+                    s_new[q] = comp * s_prev[q];
+                }
+                for &(q, g) in &gfy {
+                    s_new[q] -= h * dwfy * g;
+                }
+                for &(q, g) in &gc {
+                    s_new[q] -= h * dwc * g;
+                }
+                if let Some(ci) = icp {
+                    s_new[ci] -= f_new - fl_prev;
+                }
+                for q in 0..p {
+                    s_new[q] /= den;
+                    jm[row + q] += s_new[q];
+                }
+                std::mem::swap(&mut s_new, &mut s_prev);
+            }
+            f_new
+        } else {
+            let (f0, dfy, dc) = bingham::force(v, fy, c);
+            if jac {
+                for &(q, g) in &gfy {
+                    jm[row + q] += dfy * g;
+                }
+                for &(q, g) in &gc {
+                    jm[row + q] += dc * g;
+                }
+                if icp.is_some() {
+                    s_prev[..p].copy_from_slice(&jm[row..row + p]);
+                }
+            }
+            f0
+        };
+        fl_prev = fluid;
+        let mut total = fluid;
+        if let Some(q) = ifr {
+            let sh = (v / d.friction_velocity).tanh();
+            total += theta[q] * sh;
+            if jac {
+                jm[row + q] = sh;
+            }
+        }
+        if let Some(q) = igas {
+            total += theta[q] + theta[q + 1] * d.x[j];
+            if jac {
+                jm[row + q] = 1.0;
+                jm[row + q + 1] = d.x[j];
+            }
+        }
+        if let Some(q) = iin {
+            total += theta[q] * d.a[j];
+            if jac {
+                jm[row + q] = d.a[j];
+            }
+        }
+        force[j] = total;
+    }
+    Evaluation { force, jac: jm }
+}
+
+/// One backward-Euler step of `C dF/dt = v − w(F)`: solve `C (F − F0) + h w(F) = h v`.
+/// Returns F and ∂w/∂F, ∂w/∂F_y, ∂w/∂c at the solution.
+fn solve_compliance(f0: f64, v: f64, h: f64, comp: f64, fy: f64, c: f64) -> (f64, f64, f64, f64) {
+    let g = |f: f64| {
+        let (w, dw, _, _) = bingham::flow_velocity(f, fy, c);
+        (comp * (f - f0) + h * (w - v), comp + h * dw)
+    };
+    // Blocked guess.
+    let blocked = f0 + h * v / comp;
+    if blocked.abs() <= fy {
+        return (blocked, 0.0, 0.0, 0.0);
+    }
+    let (eq, _, _) = bingham::force(v, fy, c);
+    let (mut lo, mut hi) = if eq < f0 { (eq, f0) } else { (f0, eq) };
+    let mut x = blocked.clamp(lo, hi);
+    for _ in 0..60 {
+        let (r, dr) = g(x);
+        if r > 0.0 {
+            hi = x;
+        } else {
+            lo = x;
+        }
+        let newton = x - r / dr;
+        let next = if dr > 0.0 && newton > lo && newton < hi {
+            newton
+        } else {
+            0.5 * (lo + hi)
+        };
+        if (next - x).abs() <= 1e-12 * (1.0 + x.abs()) {
+            x = next;
+            break;
+        }
+        x = next;
+    }
+    let (_, dwf, dwfy, dwc) = bingham::flow_velocity(x, fy, c);
+    (x, dwf, dwfy, dwc)
+}
+
+/// A fitted model.
+#[derive(Debug, Clone)]
+pub struct Fit {
+    /// Layout.
+    pub layout: Layout,
+    /// Parameters.
+    pub theta: Vec<f64>,
+    /// Predicted force on every sample.
+    pub force: Vec<f64>,
+    /// Standard errors (inflated for autocorrelated residuals), by parameter.
+    pub se: Vec<f64>,
+    /// Sum of squared residuals on the fitting part.
+    pub train_sse: f64,
+    /// Number of fitting samples.
+    pub train_n: usize,
+    /// Lag-1 autocorrelation of the fitting residuals.
+    pub rho1: f64,
+}
+
+impl Fit {
+    /// RMS residual on the fitting part \[N\].
+    pub fn train_rmse(&self) -> f64 {
+        (self.train_sse / self.train_n as f64).sqrt()
+    }
+    /// RMS residual on the held-out part \[N\].
+    pub fn holdout_rmse(&self, d: &Prepared) -> f64 {
+        let (mut s, mut m) = (0.0, 0usize);
+        for j in 0..d.len() {
+            if d.holdout[j] {
+                s += (d.f[j] - self.force[j]).powi(2);
+                m += 1;
+            }
+        }
+        (s / m.max(1) as f64).sqrt()
+    }
+}
+
+fn clamp_bounds(lay: &Layout, theta: &mut [f64]) {
+    for k in 0..lay.nk {
+        theta[k] = theta[k].max(FY_MIN);
+        theta[lay.nk + k] = theta[lay.nk + k].max(C_MIN);
+    }
+    for e in [Effect::FieldLag, Effect::FluidCompressibility] {
+        if let Some(k) = lay.index(e) {
+            theta[k] = theta[k].max(0.0);
+        }
+    }
+}
+
+fn sse_train(d: &Prepared, force: &[f64]) -> f64 {
+    (0..d.len())
+        .filter(|&j| !d.holdout[j])
+        .map(|j| (d.f[j] - force[j]).powi(2))
+        .sum()
+}
+
+/// Fit `theta` (start values) on the fitting part by Levenberg–Marquardt.
+pub fn fit(d: &Prepared, lay: &Layout, theta0: &[f64]) -> Fit {
+    let p = lay.len();
+    let n = d.len();
+    let mut theta = theta0.to_vec();
+    clamp_bounds(lay, &mut theta);
+    let mut ev = evaluate(d, lay, &theta, true);
+    let mut sse = sse_train(d, &ev.force);
+    let mut lambda = 1e-3;
+    for _ in 0..40 {
+        let (jtj, jtr) = normal_equations(d, &ev, p);
+        let mut improved = false;
+        for _ in 0..12 {
+            let mut a = jtj.clone();
+            for q in 0..p {
+                a[(q, q)] += lambda * jtj[(q, q)].max(1e-12);
+            }
+            let Some(ch) = a.cholesky() else {
+                lambda *= 10.0;
+                continue;
+            };
+            let step = ch.solve(&jtr);
+            let mut trial: Vec<f64> = theta.iter().zip(step.iter()).map(|(t, s)| t + s).collect();
+            clamp_bounds(lay, &mut trial);
+            let ev2 = evaluate(d, lay, &trial, true);
+            let sse2 = sse_train(d, &ev2.force);
+            if sse2.is_finite() && sse2 < sse {
+                let rel = (sse - sse2) / sse.max(1e-300);
+                theta = trial;
+                ev = ev2;
+                sse = sse2;
+                lambda = (lambda * 0.3).max(1e-9);
+                improved = rel > 1e-7;
+                break;
+            }
+            lambda *= 10.0;
+        }
+        if !improved {
+            break;
+        }
+    }
+    // Residual autocorrelation and parameter standard errors.
+    let r: Vec<f64> = (0..n)
+        .filter(|&j| !d.holdout[j])
+        .map(|j| d.f[j] - ev.force[j])
+        .collect();
+    let rho1 = crate::stats::autocorr(&r, 1);
+    let m = r.len();
+    let n_eff = crate::stats::effective_n(m, rho1);
+    let (jtj, _) = normal_equations(d, &ev, p);
+    let sigma2 = sse / (m as f64 - p as f64).max(1.0);
+    let inflate = m as f64 / n_eff;
+    let se = match jtj.clone().try_inverse() {
+        Some(inv) => (0..p)
+            .map(|q| (inv[(q, q)].max(0.0) * sigma2 * inflate).sqrt())
+            .collect(),
+        None => vec![f64::INFINITY; p],
+    };
+    Fit {
+        layout: lay.clone(),
+        theta,
+        force: ev.force,
+        se,
+        train_sse: sse,
+        train_n: m,
+        rho1,
+    }
+}
+
+fn normal_equations(
+    d: &Prepared,
+    ev: &Evaluation,
+    p: usize,
+) -> (nalgebra::DMatrix<f64>, nalgebra::DVector<f64>) {
+    let mut jtj = nalgebra::DMatrix::<f64>::zeros(p, p);
+    let mut jtr = nalgebra::DVector::<f64>::zeros(p);
+    for j in 0..d.len() {
+        if d.holdout[j] {
+            continue;
+        }
+        let row = &ev.jac[j * p..(j + 1) * p];
+        let r = d.f[j] - ev.force[j];
+        for a in 0..p {
+            if row[a] == 0.0 {
+                continue;
+            }
+            jtr[a] += row[a] * r;
+            for b in a..p {
+                jtj[(a, b)] += row[a] * row[b];
+            }
+        }
+    }
+    for a in 0..p {
+        for b in 0..a {
+            jtj[(a, b)] = jtj[(b, a)];
+        }
+    }
+    (jtj, jtr)
+}
+
+/// Start values of the baseline: per knot, F ≈ a sgn v + c v on the samples at that
+/// knot, F_y = a / 1.5 (the Bingham slit's high-speed intercept is 3/2 F_y).
+pub fn baseline_start(d: &Prepared) -> (Layout, Vec<f64>) {
+    let nk = d.knots.len();
+    let mut theta = vec![0.0; 2 * nk];
+    for k in 0..nk {
+        let (mut s11, mut s12, mut s22, mut b1, mut b2) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        for j in 0..d.len() {
+            let (kk, lam, _) = knot_weights(&d.knots, d.i[j]);
+            let w = if kk == k {
+                1.0 - lam
+            } else if kk + 1 == k {
+                lam
+            } else {
+                0.0
+            };
+            if w <= 0.0 || d.holdout[j] {
+                continue;
+            }
+            let (g1, g2) = (d.v[j].signum(), d.v[j]);
+            s11 += w * g1 * g1;
+            s12 += w * g1 * g2;
+            s22 += w * g2 * g2;
+            b1 += w * g1 * d.f[j];
+            b2 += w * g2 * d.f[j];
+        }
+        let det = s11 * s22 - s12 * s12;
+        let (a, c) = if det.abs() > 1e-300 {
+            ((b1 * s22 - b2 * s12) / det, (s11 * b2 - s12 * b1) / det)
+        } else {
+            (1.0, 1.0)
+        };
+        theta[k] = (a / 1.5).max(1.0);
+        theta[nk + k] = c.max(1.0);
+    }
+    (
+        Layout {
+            nk,
+            effects: Vec::new(),
+        },
+        theta,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::data::{prepare, Signals};
+
+    /// A short synthetic record: two frequencies, current steps, smooth noise-free force.
+    fn record() -> Prepared {
+        let mut s = Signals::default();
+        for k in 0..3000 {
+            let t = k as f64 * 0.002;
+            let f = if t < 3.0 { 2.0 } else { 4.0 };
+            let w = 2.0 * std::f64::consts::PI * f;
+            let i = [0.0, 0.5, 1.0][((t / 0.55) as usize) % 3];
+            let v = 0.008 * w * (w * t).cos();
+            s.time_s.push(t);
+            s.displacement_m.push(0.008 * (w * t).sin());
+            s.velocity_m_s.push(v);
+            s.current_a.push(i);
+            s.force_n
+                .push((300.0 + 900.0 * i) * (v / 0.02).tanh() + 800.0 * v);
+        }
+        prepare(&s).expect("valid record")
+    }
+
+    #[test]
+    fn jacobian_matches_finite_differences_with_every_effect() {
+        let d = record();
+        let lay = Layout {
+            nk: d.knots.len(),
+            effects: Effect::ALL.to_vec(),
+        };
+        let mut theta = vec![250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0];
+        // compressibility 0.05 mm/kN, gas, friction, thermal, lag 8 ms, inertia (ALL order)
+        theta.extend([5e-8, -40.0, 800.0, 15.0, 0.05, 0.008, 0.5]);
+        assert_eq!(theta.len(), lay.len());
+        let ev = evaluate(&d, &lay, &theta, true);
+        let p = lay.len();
+        for q in 0..p {
+            let h = 1e-6 * theta[q].abs().max(1e-9);
+            let mut tp = theta.clone();
+            tp[q] += h;
+            let mut tm = theta.clone();
+            tm[q] -= h;
+            let fp = evaluate(&d, &lay, &tp, false).force;
+            let fm = evaluate(&d, &lay, &tm, false).force;
+            let (mut num, mut den) = (0.0, 0.0);
+            for j in 0..d.len() {
+                let fd = (fp[j] - fm[j]) / (2.0 * h);
+                num += (fd - ev.jac[j * p + q]).powi(2);
+                den += fd * fd;
+            }
+            assert!(
+                num <= 1e-6 * den.max(1e-12),
+                "parameter {q}: relative Jacobian error {}",
+                (num / den.max(1e-300)).sqrt()
+            );
+        }
+    }
+
+    #[test]
+    fn compliance_to_zero_gives_the_incompressible_baseline() {
+        let d = record();
+        let base = Layout {
+            nk: d.knots.len(),
+            effects: vec![],
+        };
+        let th = vec![250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0];
+        let f0 = evaluate(&d, &base, &th, false).force;
+        let lay = base.with(Effect::FluidCompressibility);
+        let mut tc = th.clone();
+        tc.push(1e-12);
+        let f1 = evaluate(&d, &lay, &tc, false).force;
+        let worst = f0
+            .iter()
+            .zip(&f1)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 1.0, "largest difference {worst} N");
+        // A stiff chamber lags: with a large compliance the force after reversal is lower.
+        tc[6] = 2e-7;
+        let f2 = evaluate(&d, &lay, &tc, false).force;
+        let diff: f64 = f0.iter().zip(&f2).map(|(a, b)| (a - b).powi(2)).sum();
+        assert!(diff > 1e3);
+    }
+}

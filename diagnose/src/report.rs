@@ -1,0 +1,390 @@
+//! The diagnosis as data: what the JSON output and the Markdown report hold.
+
+use std::collections::BTreeMap;
+
+use serde::Serialize;
+
+/// A model's fit quality.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct ModelSummary {
+    /// Readable model name.
+    pub model: String,
+    /// RMS residual on the fitting part \[N\].
+    #[serde(rename = "train_rmse_N")]
+    pub train_rmse_n: f64,
+    /// RMS residual on the held-out part \[N\].
+    #[serde(rename = "holdout_rmse_N")]
+    pub holdout_rmse_n: f64,
+    /// Number of parameters.
+    pub parameters: usize,
+}
+
+/// A region where the residual concentrates.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Mismatch {
+    /// Region name.
+    pub region: String,
+    /// Fraction of the residual energy Σ r² that falls in the region.
+    pub share_of_residual_energy: f64,
+    /// Fraction of the samples in the region.
+    pub share_of_samples: f64,
+    /// Mean square of the ±10 ms moving-average residual in the region, less the white-noise
+    /// part, over that of the whole record (systematic structure).
+    pub structure_ratio: f64,
+    /// Readable description.
+    pub description: String,
+}
+
+/// A fitted parameter with its 95 % interval.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Parameter {
+    /// Value in `unit`.
+    pub value: f64,
+    /// 95 % confidence interval (standard error inflated for autocorrelated residuals).
+    pub ci95: [f64; 2],
+    /// Unit.
+    pub unit: String,
+}
+
+/// Evidence for a candidate.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Evidence {
+    /// Held-out RMS before adding the effect \[N\].
+    #[serde(rename = "holdout_rmse_before_N")]
+    pub holdout_rmse_before_n: f64,
+    /// Held-out RMS after \[N\].
+    #[serde(rename = "holdout_rmse_after_N")]
+    pub holdout_rmse_after_n: f64,
+    /// Change of the information criterion with the effective sample size (negative: better).
+    pub delta_bic: f64,
+    /// Effective sample size used in the criterion and the intervals.
+    pub effective_samples: f64,
+    /// Paired z statistic of the per-stroke held-out improvement.
+    pub holdout_z: f64,
+    /// Relative fall of the residual structure in the best flagged region.
+    pub structure_drop: f64,
+    /// That region.
+    pub structure_region: String,
+}
+
+/// An accepted effect.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Finding {
+    /// Effect id (PHYSICS.md).
+    pub effect: String,
+    /// What it means physically, with the numbers.
+    pub explanation: String,
+    /// Fitted parameters of the effect in the final model.
+    pub parameters: BTreeMap<String, Parameter>,
+    /// Why it was accepted.
+    pub evidence: Evidence,
+}
+
+/// Explanations the data cannot tell apart.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Undecided {
+    /// The effects.
+    pub effects: Vec<String>,
+    /// Why no choice was made.
+    pub why: String,
+}
+
+/// One candidate tried in one round of forward selection.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Trial {
+    /// Round (1-based).
+    pub round: usize,
+    /// Effect id.
+    pub effect: String,
+    /// Evidence.
+    pub evidence: Evidence,
+    /// Parameters of the effect.
+    pub parameters: BTreeMap<String, Parameter>,
+    /// Rules passed: held-out, criterion, interval, structure.
+    pub passed: [bool; 4],
+    /// Accepted in this round.
+    pub accepted: bool,
+}
+
+/// Residual whiteness.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Whiteness {
+    /// Lag-1 autocorrelation.
+    pub rho1: f64,
+    /// 95 % band of a white residual, ±1.96/√n.
+    pub band95: f64,
+    /// Ljung–Box Q over 20 lags.
+    pub ljung_box_q20: f64,
+    /// Its 95 % critical value.
+    pub ljung_box_crit95: f64,
+}
+
+/// Cross-correlation of the residual with a signal.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct CrossCorrelation {
+    /// Signal.
+    pub signal: String,
+    /// Largest |ρ| over lags ±50 samples (residual after the signal for positive lags).
+    pub max_abs_rho: f64,
+    /// Its lag in samples.
+    pub lag_samples: i64,
+    /// 95 % band of a white residual, ±1.96/√n.
+    pub band95: f64,
+    /// The wider band for the residual's own autocorrelation, ±1.96/√n_eff.
+    pub band95_autocorrelated: f64,
+}
+
+/// Residual statistics of one model.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct ResidualStats {
+    /// Whiteness.
+    pub whiteness: Whiteness,
+    /// Cross-correlations.
+    pub cross_correlation: Vec<CrossCorrelation>,
+}
+
+/// RMS residual by stroke phase.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct PhaseResidual {
+    /// Phase or direction.
+    pub phase: String,
+    /// Baseline RMS \[N\].
+    #[serde(rename = "baseline_rms_N")]
+    pub baseline_rms_n: f64,
+    /// Final-model RMS \[N\].
+    #[serde(rename = "final_rms_N")]
+    pub final_rms_n: f64,
+}
+
+/// The split.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Split {
+    /// How.
+    pub method: String,
+    /// Fitting samples.
+    pub train_samples: usize,
+    /// Held-out samples.
+    pub holdout_samples: usize,
+    /// Strokes.
+    pub strokes: usize,
+    /// Segments.
+    pub segments: usize,
+    /// Current knots \[A\].
+    pub current_knots_a: Vec<f64>,
+}
+
+/// The whole diagnosis.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Report {
+    /// Input description.
+    pub input: String,
+    /// Number of samples.
+    pub samples: usize,
+    /// The split.
+    pub split: Split,
+    /// The baseline.
+    pub baseline: ModelSummary,
+    /// Where the baseline residual concentrates.
+    pub mismatch: Vec<Mismatch>,
+    /// Baseline residual statistics.
+    pub baseline_residual: ResidualStats,
+    /// Accepted effects, in the order accepted.
+    pub findings: Vec<Finding>,
+    /// Explanations the data cannot tell apart.
+    pub undecided: Vec<Undecided>,
+    /// Every candidate tried.
+    pub trials: Vec<Trial>,
+    /// The final model.
+    #[serde(rename = "final")]
+    pub final_model: ModelSummary,
+    /// Final residual statistics.
+    pub final_residual: ResidualStats,
+    /// RMS residual by stroke phase, before and after.
+    pub residual_by_phase: Vec<PhaseResidual>,
+    /// The acceptance thresholds used.
+    pub thresholds: BTreeMap<String, f64>,
+}
+
+fn fmt_params(p: &BTreeMap<String, Parameter>) -> String {
+    p.iter()
+        .map(|(k, v)| {
+            format!(
+                "{k} = {:.4} {} (95 % CI {:.4} … {:.4})",
+                v.value, v.unit, v.ci95[0], v.ci95[1]
+            )
+        })
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
+/// The report as Markdown: what was wrong, where, which physics explains it, the fitted
+/// parameters with intervals, and how much better the held-out fit is.
+pub fn render_markdown(r: &Report) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let _ = writeln!(s, "# mrtwin diagnose: {}\n", r.input);
+    let _ = writeln!(
+        s,
+        "{} samples, {} strokes, {} segments, current knots {:?} A.\n",
+        r.samples, r.split.strokes, r.split.segments, r.split.current_knots_a
+    );
+    let _ = writeln!(
+        s,
+        "**Split.** {} ({} fitting, {} held-out samples).\n",
+        r.split.method, r.split.train_samples, r.split.holdout_samples
+    );
+    let _ = writeln!(s, "## Verdict\n");
+    if r.findings.is_empty() && r.undecided.is_empty() {
+        let _ = writeln!(
+            s,
+            "Nothing is missing: no candidate effect passed every acceptance rule. \
+             The baseline stands.\n"
+        );
+    }
+    for f in &r.findings {
+        let e = &f.evidence;
+        let _ = writeln!(
+            s,
+            "- **{}** — {}. Parameters: {}. Held-out RMS {:.2} → {:.2} N \
+             ({:.1} % lower, paired z {:.1} over held-out strokes), ΔBIC {:.1} (n_eff {:.0}), \
+             residual structure in \"{}\" down {:.0} %.",
+            f.effect,
+            f.explanation,
+            fmt_params(&f.parameters),
+            e.holdout_rmse_before_n,
+            e.holdout_rmse_after_n,
+            100.0 * (1.0 - e.holdout_rmse_after_n / e.holdout_rmse_before_n),
+            e.holdout_z,
+            e.delta_bic,
+            e.effective_samples,
+            e.structure_region,
+            100.0 * e.structure_drop
+        );
+    }
+    for u in &r.undecided {
+        let _ = writeln!(s, "- **undecided: {}** — {}", u.effects.join(" or "), u.why);
+    }
+    let _ = writeln!(s, "\n## Fit\n");
+    let _ = writeln!(
+        s,
+        "| model | parameters | fitting RMS (N) | held-out RMS (N) |"
+    );
+    let _ = writeln!(s, "| --- | --- | --- | --- |");
+    for m in [&r.baseline, &r.final_model] {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.2} | {:.2} |",
+            m.model, m.parameters, m.train_rmse_n, m.holdout_rmse_n
+        );
+    }
+    let _ = writeln!(s, "\n## Where the baseline misses\n");
+    if r.mismatch.is_empty() {
+        let _ = writeln!(s, "No region holds more than its share of the residual.\n");
+    } else {
+        let _ = writeln!(
+            s,
+            "| region | share of residual energy | share of samples | structure ratio |"
+        );
+        let _ = writeln!(s, "| --- | --- | --- | --- |");
+        for m in &r.mismatch {
+            let _ = writeln!(
+                s,
+                "| {} | {:.1} % | {:.1} % | {:.2} |",
+                m.region,
+                100.0 * m.share_of_residual_energy,
+                100.0 * m.share_of_samples,
+                m.structure_ratio
+            );
+        }
+    }
+    let _ = writeln!(s, "\n## Residual by stroke phase\n");
+    let _ = writeln!(s, "| phase | baseline RMS (N) | final RMS (N) |");
+    let _ = writeln!(s, "| --- | --- | --- |");
+    for p in &r.residual_by_phase {
+        let _ = writeln!(
+            s,
+            "| {} | {:.2} | {:.2} |",
+            p.phase, p.baseline_rms_n, p.final_rms_n
+        );
+    }
+    let _ = writeln!(s, "\n## Residual statistics\n");
+    let _ = writeln!(
+        s,
+        "| model | lag-1 autocorrelation | Ljung–Box Q(20) (95 % crit.) | velocity | acceleration | displacement | current steps |"
+    );
+    let _ = writeln!(s, "| --- | --- | --- | --- | --- | --- | --- |");
+    for (name, st) in [
+        ("baseline", &r.baseline_residual),
+        ("final", &r.final_residual),
+    ] {
+        let cc: Vec<String> = st
+            .cross_correlation
+            .iter()
+            .map(|c| {
+                format!(
+                    "{:.3} at lag {} (band ±{:.3} white, ±{:.3} autocorr.)",
+                    c.max_abs_rho, c.lag_samples, c.band95, c.band95_autocorrelated
+                )
+            })
+            .collect();
+        let _ = writeln!(
+            s,
+            "| {name} | {:.3} (band ±{:.3}) | {:.0} ({:.0}) | {} |",
+            st.whiteness.rho1,
+            st.whiteness.band95,
+            st.whiteness.ljung_box_q20,
+            st.whiteness.ljung_box_crit95,
+            cc.join(" | ")
+        );
+    }
+    let _ = writeln!(s, "\n## Every candidate tried\n");
+    let _ = writeln!(
+        s,
+        "Rules: held-out RMS falls (≥ {:.1} % and paired z ≥ {:.1}); ΔBIC with the effective \
+         sample size ≤ {:.0}; the parameter's 95 % CI excludes the no-effect value on the \
+         physical side; the residual structure falls ≥ {:.0} % in a flagged region or the \
+         region the candidate acts on.\n",
+        100.0
+            * r.thresholds
+                .get("min_holdout_rmse_drop")
+                .copied()
+                .unwrap_or(0.0),
+        r.thresholds
+            .get("min_holdout_paired_z")
+            .copied()
+            .unwrap_or(0.0),
+        r.thresholds.get("max_delta_bic").copied().unwrap_or(0.0),
+        100.0
+            * r.thresholds
+                .get("min_structure_drop")
+                .copied()
+                .unwrap_or(0.0)
+    );
+    let _ = writeln!(
+        s,
+        "| round | effect | held-out RMS (N) | z | ΔBIC | structure drop | parameters | rules passed | accepted |"
+    );
+    let _ = writeln!(s, "| --- | --- | --- | --- | --- | --- | --- | --- | --- |");
+    let yn = |b: bool| if b { "yes" } else { "no" };
+    for t in &r.trials {
+        let e = &t.evidence;
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.2} → {:.2} | {:.1} | {:.1} | {:.0} % | {} | held-out {}, ΔBIC {}, CI {}, structure {} | {} |",
+            t.round,
+            t.effect,
+            e.holdout_rmse_before_n,
+            e.holdout_rmse_after_n,
+            e.holdout_z,
+            e.delta_bic,
+            100.0 * e.structure_drop,
+            fmt_params(&t.parameters),
+            yn(t.passed[0]),
+            yn(t.passed[1]),
+            yn(t.passed[2]),
+            yn(t.passed[3]),
+            yn(t.accepted)
+        );
+    }
+    s
+}

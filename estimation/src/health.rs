@@ -1,0 +1,695 @@
+//! Health checks of the twin, computed sample by sample over a sliding window.
+//!
+//! Every check has OK/WARN/ERROR thresholds in [`HealthConfig`] (parameter-file section
+//! `health`); a check with no data yet is STALE. The checks (docs/estimation.md):
+//!
+//! * **prediction residual**: RMS of F − F̂ over the window divided by the range of the
+//!   measured force in the window.
+//! * **innovation consistency**: mean normalised innovation squared (NIS)
+//!   (F − F̂)²/σ_F² over the window, σ_F the force sensor's noise; under a consistent model
+//!   it is ≈ 1 (χ²_N/N, standard deviation √(2/N)).
+//! * **yield stress**: the estimate τ0 at the present current against the commissioned
+//!   reference curve τ0_ref(I); relative change, not judged while the estimate's relative
+//!   standard deviation exceeds `tau0_max_relative_std`.
+//! * **gas preload**: the estimated preload against the commissioned one (relative loss).
+//! * **thermal**: mean dissipated power over the window and the fluid temperature rise,
+//!   the larger of the recorded one (fluid − ambient) and a lumped estimate
+//!   C dΔT/dt = P − G ΔT driven by the dissipated power.
+//! * **sample rate**: the rate measured from the timestamps against the nominal one, and
+//!   dropouts (gaps longer than `dropout_factor` nominal intervals).
+//! * **data quality**: the fraction of samples the estimator rejected in the window.
+
+use serde::{Deserialize, Serialize};
+
+use crate::online::YieldEstimate;
+
+/// Severity of a check, as in ROS `diagnostic_msgs/DiagnosticStatus`.
+#[repr(u8)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Level {
+    /// Within the OK threshold.
+    Ok = 0,
+    /// Beyond the WARN threshold.
+    Warn = 1,
+    /// Beyond the ERROR threshold.
+    Error = 2,
+    /// No data.
+    Stale = 3,
+}
+
+impl Level {
+    /// `OK`, `WARN`, `ERROR`, `STALE`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Level::Ok => "OK",
+            Level::Warn => "WARN",
+            Level::Error => "ERROR",
+            Level::Stale => "STALE",
+        }
+    }
+}
+
+/// A pair of thresholds: WARN at `warn` and beyond, ERROR at `error` and beyond.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Thresholds {
+    /// WARN threshold.
+    pub warn: f64,
+    /// ERROR threshold.
+    pub error: f64,
+}
+
+impl Thresholds {
+    const fn new(warn: f64, error: f64) -> Self {
+        Self { warn, error }
+    }
+
+    /// The level of a value (larger is worse); NaN is OK (no evidence).
+    pub fn level(&self, value: f64) -> Level {
+        if value >= self.error {
+            Level::Error
+        } else if value >= self.warn {
+            Level::Warn
+        } else {
+            Level::Ok
+        }
+    }
+}
+
+/// Thresholds and windows of the health checks (parameter-file section `health`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct HealthConfig {
+    /// Length of the sliding window of every windowed check \[s\]. Default 2 s.
+    pub window_s: f64,
+    /// Prediction residual RMS / force range in the window. Default WARN 0.05, ERROR 0.15.
+    pub residual: Thresholds,
+    /// Force sensor noise σ_F used by the innovation test \[N\]. Default 10 N.
+    pub force_noise_std_n: f64,
+    /// Mean NIS over the window. Default WARN 4, ERROR 25 (a consistent model gives ≈ 1).
+    pub nis: Thresholds,
+    /// Commissioned reference τ0(I): (current A, τ0 Pa) pairs, ascending current. Default
+    /// empty (the yield-stress check then reports OK with "no reference").
+    pub tau0_reference: Vec<(f64, f64)>,
+    /// Relative change |τ0 − τ0_ref|/τ0_ref. Default WARN 0.10, ERROR 0.30.
+    pub tau0_change: Thresholds,
+    /// The change is not judged while the estimate's relative standard deviation σ/τ0 is
+    /// above this (an estimate the data do not pin down yet). Default 0.5.
+    pub tau0_max_relative_std: f64,
+    /// References below this are not compared (near 0 A) \[Pa\]. Default 1 kPa.
+    pub tau0_min_reference_pa: f64,
+    /// Commissioned gas preload \[Pa\]; none: the check does not apply. Default none.
+    pub gas_preload_reference_pa: Option<f64>,
+    /// Relative loss of gas preload (p_ref − p)/p_ref. Default WARN 0.15, ERROR 0.40.
+    pub gas_preload_loss: Thresholds,
+    /// Lumped heat capacity of fluid and body for the temperature estimate \[J/K\]. Default 300.
+    pub heat_capacity_j_per_k: f64,
+    /// Heat loss conductance to ambient \[W/K\]. Default 1.5.
+    pub heat_loss_w_per_k: f64,
+    /// Fluid temperature rise above ambient \[K\]. Default WARN 30 K, ERROR 60 K.
+    pub temperature_rise_k: Thresholds,
+    /// Nominal sample rate \[Hz\]; none: taken from the median interval of the first
+    /// 100 samples. Default none.
+    pub nominal_rate_hz: Option<f64>,
+    /// Relative shortfall of the rate, 1 − rate/nominal. Default WARN 0.10, ERROR 0.50.
+    pub rate_shortfall: Thresholds,
+    /// A gap longer than this many nominal intervals is a dropout. Default 2.5.
+    pub dropout_factor: f64,
+    /// Dropouts in the window. Default WARN 1, ERROR 10.
+    pub dropouts: Thresholds,
+    /// Fraction of samples rejected in the window. Default WARN 1e-9 (any), ERROR 0.05.
+    pub rejected_fraction: Thresholds,
+}
+
+impl Default for HealthConfig {
+    fn default() -> Self {
+        Self {
+            window_s: 2.0,
+            residual: Thresholds::new(0.05, 0.15),
+            force_noise_std_n: 10.0,
+            nis: Thresholds::new(4.0, 25.0),
+            tau0_reference: Vec::new(),
+            tau0_change: Thresholds::new(0.10, 0.30),
+            tau0_max_relative_std: 0.5,
+            tau0_min_reference_pa: 1000.0,
+            gas_preload_reference_pa: None,
+            gas_preload_loss: Thresholds::new(0.15, 0.40),
+            heat_capacity_j_per_k: 300.0,
+            heat_loss_w_per_k: 1.5,
+            temperature_rise_k: Thresholds::new(30.0, 60.0),
+            nominal_rate_hz: None,
+            rate_shortfall: Thresholds::new(0.10, 0.50),
+            dropout_factor: 2.5,
+            dropouts: Thresholds::new(1.0, 10.0),
+            rejected_fraction: Thresholds::new(1e-9, 0.05),
+        }
+    }
+}
+
+/// One processed sample as the health monitor sees it.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Observation {
+    /// Time \[s\].
+    pub time_s: f64,
+    /// Measured force \[N\].
+    pub force_n: f64,
+    /// Force the twin predicted \[N\].
+    pub predicted_force_n: f64,
+    /// Coil current \[A\].
+    pub current_a: f64,
+    /// Dissipated power from the twin \[W\].
+    pub dissipated_power_w: f64,
+    /// Fluid temperature from the twin (or a sensor) \[°C\].
+    pub fluid_temperature_c: f64,
+    /// Ambient temperature \[°C\].
+    pub ambient_temperature_c: f64,
+    /// The yield-stress estimate at the present current, if any.
+    pub estimate: Option<YieldEstimate>,
+    /// The estimator rejected this sample.
+    pub rejected: bool,
+    /// Estimated gas preload \[Pa\], where the model has a gas spring.
+    pub gas_preload_pa: Option<f64>,
+}
+
+/// The state of one check.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Check {
+    /// Name, e.g. "prediction residual".
+    pub name: String,
+    /// Level.
+    pub level: Level,
+    /// One line for people.
+    pub message: String,
+    /// Key–value pairs (numbers formatted).
+    pub values: Vec<(String, String)>,
+}
+
+/// Sums over one block of the sliding window.
+#[derive(Debug, Clone, Copy)]
+struct Block {
+    start_s: f64,
+    n: u64,
+    /// Finite residual samples.
+    n_res: u64,
+    sum_r2: f64,
+    f_min: f64,
+    f_max: f64,
+    sum_power: f64,
+    rejected: u64,
+    dropouts: u64,
+    /// First and last timestamp of the block.
+    t_first: f64,
+    t_last: f64,
+}
+
+impl Block {
+    fn new(start_s: f64) -> Self {
+        Self {
+            start_s,
+            n: 0,
+            n_res: 0,
+            sum_r2: 0.0,
+            f_min: f64::INFINITY,
+            f_max: f64::NEG_INFINITY,
+            sum_power: 0.0,
+            rejected: 0,
+            dropouts: 0,
+            t_first: f64::NAN,
+            t_last: f64::NAN,
+        }
+    }
+}
+
+/// Blocks per window: the window slides in steps of window/BLOCKS.
+const BLOCKS: usize = 10;
+
+/// Health monitor: feed [`Observation`]s, read [`Check`]s.
+#[derive(Debug, Clone)]
+pub struct HealthMonitor {
+    cfg: HealthConfig,
+    blocks: std::collections::VecDeque<Block>,
+    last_time_s: Option<f64>,
+    first_intervals: Vec<f64>,
+    nominal_interval_s: Option<f64>,
+    temperature_rise_k: f64,
+    recorded_rise_k: f64,
+    last: Option<Observation>,
+    tau0_smoothed: Option<YieldEstimate>,
+    gas_preload_pa: Option<f64>,
+    samples: u64,
+}
+
+impl HealthMonitor {
+    /// A monitor with these thresholds.
+    pub fn new(cfg: HealthConfig) -> Self {
+        let nominal_interval_s = cfg.nominal_rate_hz.filter(|r| *r > 0.0).map(|r| 1.0 / r);
+        Self {
+            cfg,
+            blocks: std::collections::VecDeque::with_capacity(BLOCKS + 1),
+            last_time_s: None,
+            first_intervals: Vec::new(),
+            nominal_interval_s,
+            temperature_rise_k: 0.0,
+            recorded_rise_k: 0.0,
+            last: None,
+            tau0_smoothed: None,
+            gas_preload_pa: None,
+            samples: 0,
+        }
+    }
+
+    /// The thresholds.
+    pub fn config(&self) -> &HealthConfig {
+        &self.cfg
+    }
+
+    fn block_len(&self) -> f64 {
+        self.cfg.window_s / BLOCKS as f64
+    }
+
+    /// One processed sample.
+    pub fn observe(&mut self, o: &Observation) {
+        self.samples += 1;
+        let t = o.time_s;
+        let time_ok = t.is_finite();
+        // Intervals and dropouts.
+        let mut dropout = false;
+        let mut dt = 0.0;
+        if let (true, Some(t0)) = (time_ok, self.last_time_s) {
+            dt = t - t0;
+            if self.nominal_interval_s.is_none() && dt > 0.0 {
+                self.first_intervals.push(dt);
+                if self.first_intervals.len() >= 100 {
+                    let mut v = std::mem::take(&mut self.first_intervals);
+                    v.sort_by(f64::total_cmp);
+                    self.nominal_interval_s = Some(v[v.len() / 2]);
+                }
+            }
+            if let Some(nom) = self.nominal_interval_s {
+                dropout = dt > self.cfg.dropout_factor * nom || dt <= 0.0;
+            } else {
+                dropout = dt <= 0.0;
+            }
+        }
+        if time_ok && self.last_time_s.is_none_or(|t0| t > t0) {
+            self.last_time_s = Some(t);
+        }
+        // Window blocks (only a finite time can place the sample).
+        let now = self.last_time_s.unwrap_or(0.0);
+        let bl = self.block_len();
+        if self.blocks.back().is_none_or(|b| now >= b.start_s + bl) {
+            let start = self
+                .blocks
+                .back()
+                .map_or(now, |b| b.start_s + bl * ((now - b.start_s) / bl).floor());
+            self.blocks.push_back(Block::new(start));
+            while self.blocks.len() > BLOCKS
+                || self
+                    .blocks
+                    .front()
+                    .is_some_and(|b| b.start_s + self.cfg.window_s + bl <= now)
+            {
+                self.blocks.pop_front();
+            }
+        }
+        let b = self.blocks.back_mut().expect("a block was just pushed");
+        b.n += 1;
+        if b.t_first.is_nan() && time_ok {
+            b.t_first = t;
+        }
+        if time_ok {
+            b.t_last = t;
+        }
+        b.rejected += u64::from(o.rejected);
+        b.dropouts += u64::from(dropout);
+        let r = o.force_n - o.predicted_force_n;
+        if r.is_finite() && !o.rejected {
+            b.n_res += 1;
+            b.sum_r2 += r * r;
+            b.f_min = b.f_min.min(o.force_n);
+            b.f_max = b.f_max.max(o.force_n);
+        }
+        if o.dissipated_power_w.is_finite() {
+            b.sum_power += o.dissipated_power_w;
+        }
+        // Lumped temperature rise, integrated exactly over the step for constant power.
+        let p = o.dissipated_power_w;
+        if p.is_finite() && dt > 0.0 && dt.is_finite() {
+            let g = self.cfg.heat_loss_w_per_k.max(1e-12);
+            let c = self.cfg.heat_capacity_j_per_k.max(1e-12);
+            let target = p.max(0.0) / g;
+            let decay = (-dt * g / c).exp();
+            self.temperature_rise_k = target + (self.temperature_rise_k - target) * decay;
+        }
+        let rec = o.fluid_temperature_c - o.ambient_temperature_c;
+        if rec.is_finite() {
+            self.recorded_rise_k = rec;
+        }
+        if let Some(e) = o.estimate {
+            if e.tau0_pa.is_finite() && e.tau0_std_pa.is_finite() {
+                self.tau0_smoothed = Some(e);
+            }
+        }
+        if let Some(g) = o.gas_preload_pa.filter(|g| g.is_finite()) {
+            // Smoothed over about one window of samples.
+            let n = (self.cfg.window_s / self.nominal_interval_s.unwrap_or(1e-3)).max(1.0);
+            self.gas_preload_pa = Some(match self.gas_preload_pa {
+                Some(prev) => prev + (g - prev) / n,
+                None => g,
+            });
+        }
+        self.last = Some(*o);
+    }
+
+    fn totals(&self) -> Block {
+        let mut t = Block::new(self.blocks.front().map_or(0.0, |b| b.start_s));
+        for b in &self.blocks {
+            t.n += b.n;
+            t.n_res += b.n_res;
+            t.sum_r2 += b.sum_r2;
+            t.f_min = t.f_min.min(b.f_min);
+            t.f_max = t.f_max.max(b.f_max);
+            t.sum_power += b.sum_power;
+            t.rejected += b.rejected;
+            t.dropouts += b.dropouts;
+            if t.t_first.is_nan() {
+                t.t_first = b.t_first;
+            }
+            if !b.t_last.is_nan() {
+                t.t_last = b.t_last;
+            }
+        }
+        t
+    }
+
+    fn stale(name: &str) -> Check {
+        Check {
+            name: name.to_string(),
+            level: Level::Stale,
+            message: "no data yet".to_string(),
+            values: Vec::new(),
+        }
+    }
+
+    /// τ0_ref at a current, interpolated linearly (held at the ends).
+    pub fn reference_tau0(&self, current_a: f64) -> Option<f64> {
+        let r = &self.cfg.tau0_reference;
+        let i = current_a.abs();
+        let first = r.first()?;
+        let last = r.last()?;
+        if i <= first.0 {
+            return Some(first.1);
+        }
+        if i >= last.0 {
+            return Some(last.1);
+        }
+        let k = r.partition_point(|p| p.0 <= i);
+        let (a, b) = (r[k - 1], r[k]);
+        Some(a.1 + (i - a.0) / (b.0 - a.0) * (b.1 - a.1))
+    }
+
+    /// The current state of every check.
+    pub fn checks(&self) -> Vec<Check> {
+        let names = [
+            "prediction residual",
+            "innovation consistency",
+            "yield stress",
+            "gas preload",
+            "thermal",
+            "sample rate",
+            "data quality",
+        ];
+        let Some(last) = self.last else {
+            return names.iter().map(|n| Self::stale(n)).collect();
+        };
+        let t = self.totals();
+        let kv = |k: &str, v: String| (k.to_string(), v);
+        let mut out = Vec::with_capacity(names.len());
+
+        // Prediction residual.
+        let rms = if t.n_res > 0 {
+            (t.sum_r2 / t.n_res as f64).sqrt()
+        } else {
+            f64::NAN
+        };
+        let range = t.f_max - t.f_min;
+        let norm = rms / range;
+        out.push(if norm.is_finite() {
+            let level = self.cfg.residual.level(norm);
+            Check {
+                name: names[0].into(),
+                level,
+                message: format!(
+                    "residual RMS {:.1} N is {:.1} % of the force range {:.0} N",
+                    rms,
+                    100.0 * norm,
+                    range
+                ),
+                values: vec![
+                    kv("rms_n", format!("{rms:.3}")),
+                    kv("force_range_n", format!("{range:.3}")),
+                    kv("normalised", format!("{norm:.5}")),
+                    kv("warn", format!("{}", self.cfg.residual.warn)),
+                    kv("error", format!("{}", self.cfg.residual.error)),
+                ],
+            }
+        } else {
+            Self::stale(names[0])
+        });
+
+        // Innovation consistency (NIS).
+        let sigma = self.cfg.force_noise_std_n;
+        let nis = rms * rms / (sigma * sigma);
+        out.push(if nis.is_finite() {
+            Check {
+                name: names[1].into(),
+                level: self.cfg.nis.level(nis),
+                message: format!(
+                    "mean normalised innovation squared {:.2} over {} samples (≈ 1 if consistent, σ_F = {} N)",
+                    nis, t.n_res, sigma
+                ),
+                values: vec![
+                    kv("mean_nis", format!("{nis:.4}")),
+                    kv("samples", t.n_res.to_string()),
+                    kv("force_noise_std_n", format!("{sigma}")),
+                ],
+            }
+        } else {
+            Self::stale(names[1])
+        });
+
+        // Yield stress against the reference.
+        out.push(match (self.tau0_smoothed, last.estimate) {
+            (_, None) | (None, _) => Check {
+                name: names[2].into(),
+                level: Level::Ok,
+                message: "no estimate at the present current yet".into(),
+                values: vec![kv("current_a", format!("{:.3}", last.current_a))],
+            },
+            (Some(e), Some(_)) => match self.reference_tau0(e.current_a) {
+                Some(r) if r >= self.cfg.tau0_min_reference_pa => {
+                    let change = (e.tau0_pa - r) / r;
+                    let judged =
+                        e.tau0_std_pa <= self.cfg.tau0_max_relative_std * e.tau0_pa.abs();
+                    let level = if judged {
+                        self.cfg.tau0_change.level(change.abs())
+                    } else {
+                        Level::Ok
+                    };
+                    Check {
+                        name: names[2].into(),
+                        level,
+                        message: format!(
+                            "τ0 {:.1} ± {:.1} kPa at {:.2} A, {:+.1} % from the reference {:.1} kPa",
+                            e.tau0_pa / 1e3,
+                            e.tau0_std_pa / 1e3,
+                            e.current_a,
+                            100.0 * change,
+                            r / 1e3
+                        ),
+                        values: vec![
+                            kv("current_a", format!("{:.4}", e.current_a)),
+                            kv("tau0_pa", format!("{:.1}", e.tau0_pa)),
+                            kv("tau0_std_pa", format!("{:.1}", e.tau0_std_pa)),
+                            kv("tau0_reference_pa", format!("{r:.1}")),
+                            kv("relative_change", format!("{change:.5}")),
+                        ],
+                    }
+                }
+                _ => Check {
+                    name: names[2].into(),
+                    level: Level::Ok,
+                    message: format!(
+                        "τ0 {:.1} ± {:.1} kPa at {:.2} A (no reference to compare with)",
+                        e.tau0_pa / 1e3,
+                        e.tau0_std_pa / 1e3,
+                        e.current_a
+                    ),
+                    values: vec![
+                        kv("current_a", format!("{:.4}", e.current_a)),
+                        kv("tau0_pa", format!("{:.1}", e.tau0_pa)),
+                        kv("tau0_std_pa", format!("{:.1}", e.tau0_std_pa)),
+                    ],
+                },
+            },
+        });
+
+        // Gas preload.
+        out.push(
+            match (self.gas_preload_pa, self.cfg.gas_preload_reference_pa) {
+                (Some(p), Some(r)) if r > 0.0 => {
+                    let loss = (r - p) / r;
+                    Check {
+                        name: names[3].into(),
+                        level: self.cfg.gas_preload_loss.level(loss),
+                        message: format!(
+                            "gas preload {:.2} MPa, {:.1} % below the commissioned {:.2} MPa",
+                            p / 1e6,
+                            100.0 * loss,
+                            r / 1e6
+                        ),
+                        values: vec![
+                            kv("gas_preload_pa", format!("{p:.0}")),
+                            kv("reference_pa", format!("{r:.0}")),
+                            kv("relative_loss", format!("{loss:.5}")),
+                        ],
+                    }
+                }
+                (Some(p), _) => Check {
+                    name: names[3].into(),
+                    level: Level::Ok,
+                    message: format!("gas preload {:.2} MPa (no reference)", p / 1e6),
+                    values: vec![kv("gas_preload_pa", format!("{p:.0}"))],
+                },
+                (None, _) => Check {
+                    name: names[3].into(),
+                    level: Level::Ok,
+                    message: "no gas preload estimate (model without a gas spring)".into(),
+                    values: Vec::new(),
+                },
+            },
+        );
+
+        // Thermal.
+        let mean_power = if t.n > 0 {
+            t.sum_power / t.n as f64
+        } else {
+            0.0
+        };
+        let rise = self.temperature_rise_k.max(self.recorded_rise_k);
+        out.push(Check {
+            name: names[4].into(),
+            level: self.cfg.temperature_rise_k.level(rise),
+            message: format!(
+                "mean dissipated power {:.1} W; fluid temperature rise {:.1} K (lumped estimate {:.1} K, model/sensor {:.1} K)",
+                mean_power, rise, self.temperature_rise_k, self.recorded_rise_k
+            ),
+            values: vec![
+                kv("mean_power_w", format!("{mean_power:.3}")),
+                kv("temperature_rise_k", format!("{rise:.3}")),
+                kv("estimated_rise_k", format!("{:.3}", self.temperature_rise_k)),
+                kv("recorded_rise_k", format!("{:.3}", self.recorded_rise_k)),
+            ],
+        });
+
+        // Sample rate and dropouts.
+        let span = t.t_last - t.t_first;
+        let rate = if span > 0.0 && t.n > 1 {
+            (t.n - 1) as f64 / span
+        } else {
+            f64::NAN
+        };
+        out.push(match self.nominal_interval_s {
+            Some(nom) if rate.is_finite() => {
+                let nominal = 1.0 / nom;
+                let shortfall = 1.0 - rate / nominal;
+                let level = self
+                    .cfg
+                    .rate_shortfall
+                    .level(shortfall)
+                    .max(self.cfg.dropouts.level(t.dropouts as f64));
+                Check {
+                    name: names[5].into(),
+                    level,
+                    message: format!(
+                        "{:.1} Hz (nominal {:.1} Hz), {} dropout(s) in the last {} s",
+                        rate, nominal, t.dropouts, self.cfg.window_s
+                    ),
+                    values: vec![
+                        kv("rate_hz", format!("{rate:.3}")),
+                        kv("nominal_rate_hz", format!("{nominal:.3}")),
+                        kv("dropouts", t.dropouts.to_string()),
+                    ],
+                }
+            }
+            _ => Check {
+                name: names[5].into(),
+                level: Level::Ok,
+                message: format!("learning the nominal rate ({} samples)", self.samples),
+                values: vec![kv("dropouts", t.dropouts.to_string())],
+            },
+        });
+
+        // Data quality.
+        let frac = if t.n > 0 {
+            t.rejected as f64 / t.n as f64
+        } else {
+            0.0
+        };
+        out.push(Check {
+            name: names[6].into(),
+            level: self.cfg.rejected_fraction.level(frac),
+            message: format!(
+                "{} of {} samples rejected in the last {} s",
+                t.rejected, t.n, self.cfg.window_s
+            ),
+            values: vec![
+                kv("rejected", t.rejected.to_string()),
+                kv("samples", t.n.to_string()),
+                kv("rejected_fraction", format!("{frac:.6}")),
+            ],
+        });
+        out
+    }
+
+    /// The worst level of the checks.
+    pub fn level(&self) -> Level {
+        self.checks()
+            .iter()
+            .map(|c| c.level)
+            .max()
+            .unwrap_or(Level::Stale)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn thresholds_order_levels() {
+        let t = Thresholds::new(1.0, 2.0);
+        assert_eq!(t.level(0.5), Level::Ok);
+        assert_eq!(t.level(1.0), Level::Warn);
+        assert_eq!(t.level(3.0), Level::Error);
+        assert_eq!(t.level(f64::NAN), Level::Ok);
+        assert!(Level::Stale > Level::Error);
+    }
+
+    #[test]
+    fn no_data_is_stale() {
+        let m = HealthMonitor::new(HealthConfig::default());
+        assert_eq!(m.level(), Level::Stale);
+        assert_eq!(m.checks().len(), 7);
+    }
+
+    #[test]
+    fn reference_is_interpolated() {
+        let m = HealthMonitor::new(HealthConfig {
+            tau0_reference: vec![(0.5, 10e3), (1.0, 20e3)],
+            ..Default::default()
+        });
+        assert_eq!(m.reference_tau0(0.75), Some(15e3));
+        assert_eq!(m.reference_tau0(2.0), Some(20e3));
+    }
+}

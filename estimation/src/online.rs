@@ -1,0 +1,748 @@
+//! Online estimation of the current-dependent yield stress τ0(I) while samples stream in.
+//!
+//! # Model
+//! Above yield, a Bingham-type damper (PHYSICS.md, "Other common damper models"; the
+//! flow-mode limit of Graczykowski & Pawłowski with Δp_y = 2 τ0 L / h) gives a rod force
+//! that is linear in its parameters at a fixed current:
+//!
+//! F = F_y(I) sgn(v) + b(I) sgn(v) √(|v|/v_ref) + c(I) v + f0 + k x,   F_y(I) = a · τ0(I),
+//!
+//! with a the rod force per pascal of yield stress of the geometry ([`force_per_pa`]), c the
+//! viscous coefficient, f0 the offset (gas preload −p0 Ar) and k the gas-spring stiffness.
+//! The √ term is the start of the Buckingham–Reiner slit flow above yield: with
+//! δ = Δp_y/Δp, Q ∝ Δp (1 − 3δ/2 + δ³/2), so Δp − Δp_y ≈ √(8 μ L Q Δp_y/(b h³))… grows as
+//! √Q near yield and as Q far above it; without it the intercept F_y of the two-chamber
+//! damper comes out 5–15 % high (`sqrt_velocity_term`). The regressor is
+//! φ = (sgn v, sgn v √(|v|/v_ref), v/v_ref, 1, x/x_ref); the five parameters are estimated
+//! in one bin per current range, so each current keeps its own estimate while the current
+//! switches (a curve τ0(I) over the currents seen).
+//!
+//! # Estimator and why
+//! Recursive least squares with exponential forgetting (Ljung & Söderström 1983): the model
+//! is linear in its parameters, so RLS is the exact recursive form of the batch least
+//! squares (the offline fit is its limit), costs O(p²) = 25 multiply-adds per sample, and
+//! its covariance gives the uncertainty without tuning a process-noise matrix, which a
+//! joint state–parameter UKF/EKF would need. Forgetting λ = exp(−Δt/T_mem) per used
+//! sample lets the estimate follow a weakening fluid with memory T_mem.
+//!
+//! * Pre-yield samples are left out: |v| < `pre_yield_velocity_m_s`, or within
+//!   `pre_yield_stroke_m` of the last velocity reversal; there the force is set by the
+//!   compliance of the blocked chambers (the z-loop) and not by the flow.
+//! * Excitation gate: a bin is updated only when it has seen post-yield motion in **both**
+//!   directions within `excitation_window_s` (otherwise sgn v and the offset cannot be told
+//!   apart), and not within `settle_time_s` after the current moved to another bin (the
+//!   field's rise time).
+//! * Wind-up guard: skipped samples neither update nor forget; a bin's covariance is
+//!   only inflated by forgetting while its trace stays below `max_covariance_trace`.
+//! * Uncertainty: the noise variance σ² is estimated from the normalised a-priori
+//!   innovations e²/(1 + φᵀP̄φ) with the degrees of freedom taken off; for exponentially
+//!   weighted LS the estimate's covariance is σ² P Σw²/Σw (→ σ² P/(1+λ)). Model mismatch
+//!   (real dampers, smoothed records) makes the residuals serially correlated, and then
+//!   that variance is far too small: it is multiplied by (1 + ρ)/(1 − ρ), ρ the lag-1
+//!   autocorrelation of the normalised innovations (the AR(1) effective-sample-size
+//!   correction, ≈ 1 for white noise). `tau0_std_pa` reports the result.
+//! * Bad samples (non-finite, time not increasing, a gap longer than `max_gap_s`, force at
+//!   or beyond the saturation limit) are rejected and counted; they touch no estimate.
+
+use serde::{Deserialize, Serialize};
+use twin::models::{ModelKind, ModelParams};
+
+/// Number of parameters per bin.
+const P: usize = 5;
+
+/// Settings of the yield-stress estimator (parameter-file section `estimator`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct EstimatorConfig {
+    /// Memory T_mem of the forgetting, λ = exp(−Δt/T_mem) per used sample \[s\]. Default 1 s:
+    /// a step in the fluid is followed to within e⁻³ ≈ 5 % in about 3 s of excitation.
+    pub memory_s: f64,
+    /// Samples with |v| below this are pre-yield and left out \[m/s\]. Default 0.01 m/s.
+    pub pre_yield_velocity_m_s: f64,
+    /// Include the term sgn v √(|v|/v_ref): the rise of the force just above yield in a
+    /// Bingham slit flow (Buckingham–Reiner: Δp − Δp_y ∝ √Q as Q → 0), without which the
+    /// intercept F_y of a flow-mode damper is biased high by 5–15 %. Off: the plain Bingham
+    /// model F_y sgn v + c v (for records whose force near yield does not follow the slit
+    /// law, e.g. smoothed ones). Default on.
+    pub sqrt_velocity_term: bool,
+    /// Samples within this stroke of the last velocity reversal are pre-yield too \[m\]: after
+    /// a reversal the force crosses from −F_y to +F_y over the compliance of the chambers
+    /// (2 F_y/k, k ≈ K A1²/V1 when the flow is blocked: the z-loop). Default 1 mm.
+    pub pre_yield_stroke_m: f64,
+    /// Post-yield motion in both directions must have been seen within this time for a bin
+    /// to be updated \[s\]. Default 5 s (half a period of a 0.1 Hz test).
+    pub excitation_window_s: f64,
+    /// Samples within this time after the current moved to another bin are skipped (field
+    /// rise time) \[s\]. Default 0.05 s.
+    pub settle_time_s: f64,
+    /// Width of a current bin \[A\]. Default 0.1 A.
+    pub current_bin_width_a: f64,
+    /// Most bins kept; a sample whose current would need another bin is rejected. Default 64.
+    pub max_bins: usize,
+    /// Initial covariance of each (normalised) parameter, in units of σ². Default 1e8 (a flat
+    /// prior: forces up to 10⁴ σ).
+    pub initial_covariance: f64,
+    /// Forgetting is suspended while trace(P) exceeds this (wind-up guard). Default 4e8.
+    pub max_covariance_trace: f64,
+    /// Force magnitude at which the sensor saturates \[N\]; samples at or beyond are rejected.
+    /// Default none (no limit).
+    pub force_saturation_n: Option<f64>,
+    /// Longest accepted gap between two samples \[s\]; the sample after a longer gap is
+    /// rejected as a dropout. Default 0.1 s.
+    pub max_gap_s: f64,
+    /// Updates a bin needs before it reports an estimate. Default 50.
+    pub min_updates: u64,
+    /// Velocity scale of the viscous regressor \[m/s\]. Default 0.1.
+    pub velocity_scale_m_s: f64,
+    /// Displacement scale of the stiffness regressor \[m\]. Default 0.01.
+    pub displacement_scale_m: f64,
+}
+
+impl Default for EstimatorConfig {
+    fn default() -> Self {
+        Self {
+            memory_s: 1.0,
+            pre_yield_velocity_m_s: 0.01,
+            pre_yield_stroke_m: 0.001,
+            sqrt_velocity_term: true,
+            excitation_window_s: 5.0,
+            settle_time_s: 0.05,
+            current_bin_width_a: 0.1,
+            max_bins: 64,
+            initial_covariance: 1.0e8,
+            max_covariance_trace: 4.0e8,
+            force_saturation_n: None,
+            max_gap_s: 0.1,
+            min_updates: 50,
+            velocity_scale_m_s: 0.1,
+            displacement_scale_m: 0.01,
+        }
+    }
+}
+
+/// One measured sample (SI units).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct EstimatorSample {
+    /// Time \[s\].
+    pub time_s: f64,
+    /// Displacement x \[m\].
+    pub displacement_m: f64,
+    /// Velocity v \[m/s\].
+    pub velocity_m_s: f64,
+    /// Rod force F \[N\].
+    pub force_n: f64,
+    /// Coil current \[A\].
+    pub current_a: f64,
+}
+
+/// Why a sample was rejected.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RejectReason {
+    /// A field was NaN or infinite (the field's name).
+    NonFinite(&'static str),
+    /// Time did not increase.
+    TimeNotIncreasing,
+    /// The gap since the previous sample exceeded `max_gap_s`.
+    Dropout,
+    /// |F| at or beyond `force_saturation_n`.
+    Saturated,
+    /// The current would need a bin beyond `max_bins`.
+    TooManyBins,
+}
+
+impl std::fmt::Display for RejectReason {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            RejectReason::NonFinite(field) => write!(f, "{field} is not finite"),
+            RejectReason::TimeNotIncreasing => f.write_str("time did not increase"),
+            RejectReason::Dropout => f.write_str("gap since the previous sample (dropout)"),
+            RejectReason::Saturated => f.write_str("force at the sensor's saturation"),
+            RejectReason::TooManyBins => f.write_str("too many current bins"),
+        }
+    }
+}
+
+/// What [`YieldEstimator::update`] did with a sample.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum UpdateOutcome {
+    /// The sample updated the estimate of its current bin.
+    Updated,
+    /// |v| below the pre-yield threshold: left out.
+    SkippedPreYield,
+    /// The bin has not seen post-yield motion both ways recently: left out.
+    SkippedNoExcitation,
+    /// Within the settling time after a change of current bin: left out.
+    SkippedSettling,
+    /// Bad sample: rejected and counted.
+    Rejected(RejectReason),
+}
+
+/// τ0 at one current with its standard deviation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct YieldEstimate {
+    /// Current \[A\] (the mean |I| of the samples used).
+    pub current_a: f64,
+    /// Yield stress τ0 \[Pa\].
+    pub tau0_pa: f64,
+    /// Standard deviation of τ0 \[Pa\].
+    pub tau0_std_pa: f64,
+}
+
+/// Rod force per pascal of yield stress, F_y = a τ0, for a model configuration \[m²\]:
+///
+/// * `two-chamber`: a = 2 L A1 / h, the yield pressure drop Δp_y = 2 τ0 L/h of the gap
+///   (PHYSICS.md, paper 2) acting on the annulus A1 (F = A1 Δp − Ar p2);
+/// * `direct-shear`: a = A = 2π r l, the shear area of Skalski & Zalewski (4.1), (4.3);
+/// * `bingham`, `spencer`: no geometry, `None`.
+pub fn force_per_pa(kind: ModelKind, params: &ModelParams) -> Option<f64> {
+    match kind {
+        ModelKind::TwoChamber => {
+            let p = &params.two_chamber;
+            Some(flow_mode_force_per_pa(
+                p.annulus_area(),
+                p.gap_active_length_m,
+                p.gap_height_m,
+            ))
+        }
+        ModelKind::DirectShear => Some(params.direct_shear.shear_area_m2()),
+        ModelKind::Bingham | ModelKind::Spencer => None,
+    }
+}
+
+/// a = 2 L A / h for a flow-mode damper: annulus (or piston) area `area_m2`, active gap
+/// length L and gap height h \[m²\].
+pub fn flow_mode_force_per_pa(area_m2: f64, active_length_m: f64, gap_m: f64) -> f64 {
+    2.0 * active_length_m * area_m2 / gap_m
+}
+
+/// φ = (sgn v, sgn v √(|v|/v_ref), v/v_ref, 1, x/x_ref); the second is 0 when the term is
+/// off.
+fn regressor(cfg: &EstimatorConfig, v: f64, x: f64) -> [f64; P] {
+    let r = v / cfg.velocity_scale_m_s;
+    let sq = if cfg.sqrt_velocity_term {
+        v.signum() * r.abs().sqrt()
+    } else {
+        0.0
+    };
+    [v.signum(), sq, r, 1.0, x / cfg.displacement_scale_m]
+}
+
+/// (1 + ρ)/(1 − ρ) with ρ = lag1/lag0 clamped to \[0, 0.995\].
+fn ar1_inflation(lag1: f64, lag0: f64) -> f64 {
+    let rho = if lag0 > 0.0 { lag1 / lag0 } else { 0.0 };
+    let rho = rho.clamp(0.0, 0.995);
+    (1.0 + rho) / (1.0 - rho)
+}
+
+/// RLS state of one current bin.
+#[derive(Debug, Clone)]
+struct Bin {
+    key: i64,
+    theta: [f64; P],
+    p: [[f64; P]; P],
+    /// Σ w (e²/S) and Σ w, Σ w² of the exponentially weighted sums.
+    sum_e2: f64,
+    sum_w: f64,
+    sum_w2: f64,
+    /// Σ w |I| for the bin's mean current.
+    sum_i: f64,
+    /// Σ w ε_k ε_(k−1) of consecutive normalised innovations ε = e/√S, and the last ε.
+    sum_lag1: f64,
+    last_eps: Option<f64>,
+    updates: u64,
+    last_pos_s: f64,
+    last_neg_s: f64,
+}
+
+impl Bin {
+    fn new(key: i64, p0: f64, sqrt_term: bool) -> Self {
+        let mut p = [[0.0; P]; P];
+        for (i, row) in p.iter_mut().enumerate() {
+            row[i] = p0;
+        }
+        if !sqrt_term {
+            // Prior: that parameter is exactly 0; it is never updated nor forgotten.
+            p[1][1] = 0.0;
+        }
+        Self {
+            key,
+            theta: [0.0; P],
+            p,
+            sum_e2: 0.0,
+            sum_w: 0.0,
+            sum_w2: 0.0,
+            sum_i: 0.0,
+            sum_lag1: 0.0,
+            last_eps: None,
+            updates: 0,
+            last_pos_s: f64::NEG_INFINITY,
+            last_neg_s: f64::NEG_INFINITY,
+        }
+    }
+
+    fn trace(&self) -> f64 {
+        (0..P).map(|i| self.p[i][i]).sum()
+    }
+
+    /// One RLS step with forgetting `lambda`.
+    fn rls(&mut self, phi: &[f64; P], y: f64, lambda: f64, max_trace: f64, current: f64) {
+        // Forgetting (P̄ = P/λ) only while the covariance is bounded: the wind-up guard.
+        let lam = if self.trace() / lambda > max_trace {
+            1.0
+        } else {
+            lambda
+        };
+        let mut pphi = [0.0; P];
+        for (out, row) in pphi.iter_mut().zip(&self.p) {
+            *out = row.iter().zip(phi).map(|(p, f)| p * f).sum::<f64>() / lam;
+        }
+        let s = 1.0 + (0..P).map(|i| phi[i] * pphi[i]).sum::<f64>();
+        let e = y - (0..P).map(|i| phi[i] * self.theta[i]).sum::<f64>();
+        for (t, k) in self.theta.iter_mut().zip(&pphi) {
+            *t += k / s * e;
+        }
+        for i in 0..P {
+            for j in i..P {
+                let v = self.p[i][j] / lam - pphi[i] * pphi[j] / s;
+                self.p[i][j] = v;
+                self.p[j][i] = v;
+            }
+        }
+        self.sum_e2 = lam * self.sum_e2 + e * e / s;
+        self.sum_w = lam * self.sum_w + 1.0;
+        self.sum_w2 = lam * lam * self.sum_w2 + 1.0;
+        self.sum_i = lam * self.sum_i + current;
+        let eps = e / s.sqrt();
+        self.sum_lag1 = lam * self.sum_lag1 + self.last_eps.map_or(0.0, |p| p * eps);
+        self.last_eps = Some(eps);
+        self.updates += 1;
+    }
+
+    fn noise_variance(&self) -> f64 {
+        // The first P normalised innovations of a flat prior carry no information.
+        let dof = (self.sum_w - P as f64).max(1.0);
+        self.sum_e2 / dof
+    }
+
+    /// Variance inflation (1 + ρ)/(1 − ρ) for serially correlated residuals, ρ the lag-1
+    /// autocorrelation of the normalised innovations clamped to \[0, 0.995\] (the AR(1)
+    /// effective-sample-size correction; ≈ 1 for white noise).
+    fn inflation(&self) -> f64 {
+        ar1_inflation(self.sum_lag1, self.sum_e2)
+    }
+
+    fn variance(&self, k: usize) -> f64 {
+        self.noise_variance() * self.p[k][k] * self.sum_w2 / self.sum_w * self.inflation()
+    }
+
+    fn estimate(&self, force_per_pa: f64) -> YieldEstimate {
+        let var = self.variance(0);
+        YieldEstimate {
+            current_a: self.sum_i / self.sum_w,
+            tau0_pa: self.theta[0] / force_per_pa,
+            tau0_std_pa: var.max(0.0).sqrt() / force_per_pa,
+        }
+    }
+}
+
+/// Recursive least-squares estimator of τ0(I) with forgetting, one bin per current range.
+#[derive(Debug, Clone)]
+pub struct YieldEstimator {
+    cfg: EstimatorConfig,
+    force_per_pa: f64,
+    /// Bins in ascending key (current) order.
+    bins: Vec<Bin>,
+    last_time_s: Option<f64>,
+    last_key: Option<i64>,
+    settle_until_s: f64,
+    /// Sign of the last nonzero velocity and the displacement where it last changed.
+    last_sign: f64,
+    reversal_x_m: f64,
+    rejected: u64,
+    updated: u64,
+}
+
+impl YieldEstimator {
+    /// An estimator for a damper with `force_per_pa` newtons of rod force per pascal of
+    /// yield stress (see [`force_per_pa`]).
+    pub fn new(cfg: EstimatorConfig, force_per_pa: f64) -> Self {
+        Self {
+            cfg,
+            force_per_pa,
+            bins: Vec::new(),
+            last_time_s: None,
+            last_key: None,
+            settle_until_s: f64::NEG_INFINITY,
+            last_sign: 0.0,
+            reversal_x_m: f64::NAN,
+            rejected: 0,
+            updated: 0,
+        }
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &EstimatorConfig {
+        &self.cfg
+    }
+
+    /// Rod force per pascal of yield stress used.
+    pub fn force_per_pa(&self) -> f64 {
+        self.force_per_pa
+    }
+
+    fn check(&self, s: &EstimatorSample) -> Result<(), RejectReason> {
+        for (name, v) in [
+            ("time_s", s.time_s),
+            ("displacement_m", s.displacement_m),
+            ("velocity_m_s", s.velocity_m_s),
+            ("force_n", s.force_n),
+            ("current_a", s.current_a),
+        ] {
+            if !v.is_finite() {
+                return Err(RejectReason::NonFinite(name));
+            }
+        }
+        if let Some(limit) = self.cfg.force_saturation_n {
+            if s.force_n.abs() >= limit {
+                return Err(RejectReason::Saturated);
+            }
+        }
+        if let Some(t0) = self.last_time_s {
+            if s.time_s <= t0 {
+                return Err(RejectReason::TimeNotIncreasing);
+            }
+            if s.time_s - t0 > self.cfg.max_gap_s {
+                return Err(RejectReason::Dropout);
+            }
+        }
+        Ok(())
+    }
+
+    /// One sample (SI). Returns what was done with it.
+    pub fn update(&mut self, s: &EstimatorSample) -> UpdateOutcome {
+        if let Err(reason) = self.check(s) {
+            self.rejected += 1;
+            if reason == RejectReason::Dropout {
+                // Motion must be seen again after the gap.
+                for b in &mut self.bins {
+                    b.last_pos_s = f64::NEG_INFINITY;
+                    b.last_neg_s = f64::NEG_INFINITY;
+                }
+            }
+            // A sample that arrived on time with bad values still marks the time: the
+            // stream resynchronises on it (a burst of bad values is not also a dropout).
+            if s.time_s.is_finite() && self.last_time_s.is_none_or(|t0| s.time_s > t0) {
+                self.last_time_s = Some(s.time_s);
+            }
+            return UpdateOutcome::Rejected(reason);
+        }
+        let dt = self.last_time_s.map_or(0.0, |t0| s.time_s - t0);
+        self.last_time_s = Some(s.time_s);
+
+        let current = s.current_a.abs();
+        let key = (current / self.cfg.current_bin_width_a).round() as i64;
+        if self.last_key != Some(key) {
+            if self.last_key.is_some() {
+                self.settle_until_s = s.time_s + self.cfg.settle_time_s;
+            }
+            self.last_key = Some(key);
+        }
+        let idx = match self.bins.binary_search_by_key(&key, |b| b.key) {
+            Ok(i) => i,
+            Err(i) => {
+                if self.bins.len() >= self.cfg.max_bins {
+                    self.rejected += 1;
+                    return UpdateOutcome::Rejected(RejectReason::TooManyBins);
+                }
+                self.bins.insert(
+                    i,
+                    Bin::new(
+                        key,
+                        self.cfg.initial_covariance,
+                        self.cfg.sqrt_velocity_term,
+                    ),
+                );
+                i
+            }
+        };
+        let v = s.velocity_m_s;
+        if v != 0.0 && v.signum() != self.last_sign {
+            self.last_sign = v.signum();
+            self.reversal_x_m = s.displacement_m;
+        }
+        if s.time_s < self.settle_until_s {
+            return UpdateOutcome::SkippedSettling;
+        }
+        // NaN before the first reversal: the stroke gate passes.
+        if v.abs() < self.cfg.pre_yield_velocity_m_s
+            || (s.displacement_m - self.reversal_x_m).abs() < self.cfg.pre_yield_stroke_m
+        {
+            return UpdateOutcome::SkippedPreYield;
+        }
+        let bin = &mut self.bins[idx];
+        if v > 0.0 {
+            bin.last_pos_s = s.time_s;
+        } else {
+            bin.last_neg_s = s.time_s;
+        }
+        let window = self.cfg.excitation_window_s;
+        if s.time_s - bin.last_pos_s > window || s.time_s - bin.last_neg_s > window {
+            return UpdateOutcome::SkippedNoExcitation;
+        }
+        let phi = regressor(&self.cfg, v, s.displacement_m);
+        let lambda = (-dt / self.cfg.memory_s).exp();
+        bin.rls(
+            &phi,
+            s.force_n,
+            lambda,
+            self.cfg.max_covariance_trace,
+            current,
+        );
+        self.updated += 1;
+        UpdateOutcome::Updated
+    }
+
+    fn ready(&self, b: &Bin) -> bool {
+        b.updates >= self.cfg.min_updates
+    }
+
+    /// τ0 at this current, interpolated linearly along the fitted curve between the bins
+    /// that bracket it (or from the nearest bin within half a bin width). `None` outside the
+    /// currents seen.
+    pub fn at_current(&self, current_a: f64) -> Option<YieldEstimate> {
+        let i = current_a.abs();
+        let half = 0.5 * self.cfg.current_bin_width_a;
+        // The ready bins just below and just above i (no allocation: this runs per sample).
+        let mut below: Option<YieldEstimate> = None;
+        let mut above: Option<YieldEstimate> = None;
+        for b in self.bins.iter().filter(|b| self.ready(b)) {
+            let e = b.estimate(self.force_per_pa);
+            if e.current_a <= i {
+                below = Some(e);
+            } else {
+                above = Some(e);
+                break;
+            }
+        }
+        match (below, above) {
+            (Some(a), Some(b)) => {
+                let w = (i - a.current_a) / (b.current_a - a.current_a);
+                Some(YieldEstimate {
+                    current_a: i,
+                    tau0_pa: a.tau0_pa + w * (b.tau0_pa - a.tau0_pa),
+                    tau0_std_pa: a.tau0_std_pa + w * (b.tau0_std_pa - a.tau0_std_pa),
+                })
+            }
+            (Some(e), None) | (None, Some(e)) => {
+                ((e.current_a - i).abs() <= half).then_some(YieldEstimate { current_a: i, ..e })
+            }
+            (None, None) => None,
+        }
+    }
+
+    /// τ0(I) over the currents seen (bins with at least `min_updates` updates), ascending
+    /// current.
+    pub fn curve(&self) -> Vec<YieldEstimate> {
+        self.bins
+            .iter()
+            .filter(|b| self.ready(b))
+            .map(|b| b.estimate(self.force_per_pa))
+            .collect()
+    }
+
+    /// Force offset f0 \[N\] and its standard deviation, averaged over the ready bins with
+    /// inverse-variance weights (the gas preload is −f0/Ar).
+    pub fn force_offset_n(&self) -> Option<(f64, f64)> {
+        let mut sw = 0.0;
+        let mut swx = 0.0;
+        for b in self.bins.iter().filter(|b| self.ready(b)) {
+            let var = b.variance(3);
+            if var > 0.0 && var.is_finite() {
+                sw += 1.0 / var;
+                swx += b.theta[3] / var;
+            }
+        }
+        (sw > 0.0).then(|| (swx / sw, (1.0 / sw).sqrt()))
+    }
+
+    /// Estimated noise standard deviation of the force about the model in the bin of this
+    /// current \[N\].
+    pub fn noise_std_n(&self, current_a: f64) -> Option<f64> {
+        let key = (current_a.abs() / self.cfg.current_bin_width_a).round() as i64;
+        let b = self.bins.iter().find(|b| b.key == key)?;
+        self.ready(b).then(|| b.noise_variance().sqrt())
+    }
+
+    /// Samples rejected so far.
+    pub fn rejected_count(&self) -> u64 {
+        self.rejected
+    }
+
+    /// Samples that updated an estimate so far.
+    pub fn updated_count(&self) -> u64 {
+        self.updated
+    }
+}
+
+/// The offline counterpart of the estimator: ordinary least squares of the same model
+/// over every post-yield, finite sample of a record at one current (the same pre-yield
+/// velocity and stroke gates; no forgetting, no excitation gate), with the standard error
+/// s² (ΦᵀΦ)⁻¹ inflated for serially correlated residuals as the online estimate is.
+/// `None` with fewer than eight usable samples.
+pub fn batch_fit(
+    samples: &[EstimatorSample],
+    cfg: &EstimatorConfig,
+    force_per_pa: f64,
+) -> Option<YieldEstimate> {
+    let mut a = [[0.0; P]; P];
+    let mut b = [0.0; P];
+    let mut rows = Vec::new();
+    let mut sum_i = 0.0;
+    let (mut last_sign, mut reversal_x) = (0.0, f64::NAN);
+    for s in samples {
+        let v = s.velocity_m_s;
+        if ![s.force_n, v, s.displacement_m, s.current_a]
+            .iter()
+            .all(|x| x.is_finite())
+        {
+            continue;
+        }
+        if v != 0.0 && v.signum() != last_sign {
+            last_sign = v.signum();
+            reversal_x = s.displacement_m;
+        }
+        if v.abs() < cfg.pre_yield_velocity_m_s
+            || (s.displacement_m - reversal_x).abs() < cfg.pre_yield_stroke_m
+        {
+            continue;
+        }
+        let phi = regressor(cfg, v, s.displacement_m);
+        for i in 0..P {
+            b[i] += phi[i] * s.force_n;
+            for j in 0..P {
+                a[i][j] += phi[i] * phi[j];
+            }
+        }
+        sum_i += s.current_a.abs();
+        rows.push((phi, s.force_n));
+    }
+    let m = rows.len();
+    if m < 8 {
+        return None;
+    }
+    if !cfg.sqrt_velocity_term {
+        // That parameter is fixed at 0 (its regressor is 0): keep the system regular.
+        a[1][1] = 1.0;
+    }
+    let inv = invert5(a)?;
+    let theta: Vec<f64> = (0..P)
+        .map(|i| (0..P).map(|j| inv[i][j] * b[j]).sum())
+        .collect();
+    let ssr: f64 = rows
+        .iter()
+        .map(|(phi, y)| (y - (0..P).map(|i| phi[i] * theta[i]).sum::<f64>()).powi(2))
+        .sum();
+    let resid: Vec<f64> = rows
+        .iter()
+        .map(|(phi, y)| y - (0..P).map(|i| phi[i] * theta[i]).sum::<f64>())
+        .collect();
+    let lag1: f64 = resid.windows(2).map(|w| w[0] * w[1]).sum();
+    let s2 = ssr / (m - P) as f64 * ar1_inflation(lag1, ssr);
+    Some(YieldEstimate {
+        current_a: sum_i / m as f64,
+        tau0_pa: theta[0] / force_per_pa,
+        tau0_std_pa: (s2 * inv[0][0]).sqrt() / force_per_pa,
+    })
+}
+
+/// Inverse of a 5×5 matrix by Gauss–Jordan with partial pivoting.
+fn invert5(mut a: [[f64; P]; P]) -> Option<[[f64; P]; P]> {
+    let mut inv = [[0.0; P]; P];
+    for (i, row) in inv.iter_mut().enumerate() {
+        row[i] = 1.0;
+    }
+    for c in 0..P {
+        let p = (c..P).max_by(|&x, &y| a[x][c].abs().total_cmp(&a[y][c].abs()))?;
+        if a[p][c].abs() < 1e-300 {
+            return None;
+        }
+        a.swap(c, p);
+        inv.swap(c, p);
+        let d = a[c][c];
+        for j in 0..P {
+            a[c][j] /= d;
+            inv[c][j] /= d;
+        }
+        for r in 0..P {
+            if r != c {
+                let k = a[r][c];
+                for j in 0..P {
+                    a[r][j] -= k * a[c][j];
+                    inv[r][j] -= k * inv[c][j];
+                }
+            }
+        }
+    }
+    Some(inv)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn force_per_pa_of_the_default_two_chamber_gives_its_yield_force() {
+        let params = ModelParams::default();
+        let a = force_per_pa(ModelKind::TwoChamber, &params).unwrap();
+        // 2 · 0.02 m · 7.26e-4 m² / 0.8e-3 m = 0.0363 m²: 35.5 kPa at 1 A gives ≈ 1.29 kN.
+        assert!((a - 0.036_285).abs() < 1e-5, "{a}");
+        assert!(force_per_pa(ModelKind::Bingham, &params).is_none());
+    }
+
+    #[test]
+    fn bad_samples_are_rejected_and_counted() {
+        let mut e = YieldEstimator::new(
+            EstimatorConfig {
+                force_saturation_n: Some(1000.0),
+                ..Default::default()
+            },
+            1.0,
+        );
+        let ok = EstimatorSample {
+            time_s: 0.0,
+            velocity_m_s: 0.1,
+            force_n: 10.0,
+            ..Default::default()
+        };
+        assert!(!matches!(e.update(&ok), UpdateOutcome::Rejected(_)));
+        let nan = EstimatorSample {
+            time_s: 0.001,
+            force_n: f64::NAN,
+            ..ok
+        };
+        assert_eq!(
+            e.update(&nan),
+            UpdateOutcome::Rejected(RejectReason::NonFinite("force_n"))
+        );
+        let sat = EstimatorSample {
+            time_s: 0.002,
+            force_n: -1000.0,
+            ..ok
+        };
+        assert_eq!(
+            e.update(&sat),
+            UpdateOutcome::Rejected(RejectReason::Saturated)
+        );
+        let back = EstimatorSample { time_s: 0.0, ..ok };
+        assert_eq!(
+            e.update(&back),
+            UpdateOutcome::Rejected(RejectReason::TimeNotIncreasing)
+        );
+        let late = EstimatorSample { time_s: 1.0, ..ok };
+        assert_eq!(
+            e.update(&late),
+            UpdateOutcome::Rejected(RejectReason::Dropout)
+        );
+        assert_eq!(e.rejected_count(), 4);
+    }
+}

@@ -1,0 +1,206 @@
+//! Launch files in the ROS 2 launch YAML style:
+//!
+//! ```yaml
+//! launch:
+//!   - node:
+//!       pkg: mrtwin
+//!       exec: stand            # stand | twin | record
+//!       name: mrtwin_stand
+//!       namespace: /lab
+//!       param:
+//!         - from: stand.params.yaml      # relative to the launch file
+//!         - { name: rate_hz, value: 1000 }
+//!       remap:
+//!         - { from: sensor/sample, to: rig/sample }
+//! ```
+//!
+//! Unknown keys and wrong types are errors naming the file, key and line (the same
+//! machinery as parameter files).
+
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+use serde_norway::Value;
+
+use crate::{parse_params, ConfigError};
+
+/// A launch file.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LaunchFile {
+    /// The entries, started in order.
+    pub launch: Vec<LaunchEntry>,
+}
+
+/// One entry of `launch:`.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "lowercase")]
+pub enum LaunchEntry {
+    /// `- node: {...}`.
+    Node(NodeEntry),
+}
+
+/// A node to start.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NodeEntry {
+    /// Package (must be `mrtwin`).
+    pub pkg: String,
+    /// Executable (`stand`, `twin`, `record`).
+    pub exec: String,
+    /// Node name (`-r __node:=`).
+    #[serde(default)]
+    pub name: Option<String>,
+    /// Namespace (`-r __ns:=`).
+    #[serde(default)]
+    pub namespace: Option<String>,
+    /// Parameter files and single parameters.
+    #[serde(default)]
+    pub param: Vec<ParamEntry>,
+    /// Remappings.
+    #[serde(default)]
+    pub remap: Vec<RemapEntry>,
+    /// Extra command-line arguments of the executable (before `--ros-args`).
+    #[serde(default)]
+    pub args: Option<String>,
+}
+
+/// `- from: FILE` or `- {name: N, value: V}`.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParamEntry {
+    /// A parameter file.
+    #[serde(default)]
+    pub from: Option<String>,
+    /// A parameter name (dotted for nested keys).
+    #[serde(default)]
+    pub name: Option<String>,
+    /// Its value.
+    #[serde(default)]
+    pub value: Option<Value>,
+}
+
+/// `- {from: A, to: B}`.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RemapEntry {
+    /// Original name.
+    pub from: String,
+    /// New name.
+    pub to: String,
+}
+
+impl NodeEntry {
+    /// The `--ros-args` part of this node's command line; parameter files are resolved
+    /// relative to `base` (the launch file's directory).
+    pub fn ros_args(&self, base: &Path) -> Vec<String> {
+        let mut a = vec!["--ros-args".to_string()];
+        if let Some(n) = &self.name {
+            a.extend(["-r".into(), format!("__node:={n}")]);
+        }
+        if let Some(ns) = &self.namespace {
+            a.extend(["-r".into(), format!("__ns:={ns}")]);
+        }
+        for p in &self.param {
+            if let Some(f) = &p.from {
+                let path: PathBuf = base.join(f);
+                a.extend(["--params-file".into(), path.display().to_string()]);
+            }
+            if let (Some(n), Some(v)) = (&p.name, &p.value) {
+                let text = match v {
+                    Value::String(s) => s.clone(),
+                    other => serde_norway::to_string(other)
+                        .unwrap_or_default()
+                        .trim()
+                        .to_string(),
+                };
+                a.extend(["-p".into(), format!("{n}:={text}")]);
+            }
+        }
+        for r in &self.remap {
+            a.extend(["-r".into(), format!("{}:={}", r.from, r.to)]);
+        }
+        a
+    }
+}
+
+/// Read and check a launch file.
+pub fn load_launch(path: &Path) -> Result<LaunchFile, ConfigError> {
+    let name = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| crate::io_error(&name, e))?;
+    parse_launch(&text, &name)
+}
+
+/// Parse and check the text of a launch file; `source` names it in errors.
+pub fn parse_launch(text: &str, source: &str) -> Result<LaunchFile, ConfigError> {
+    let file: LaunchFile = parse_params(text, source, "/launch")?;
+    for (i, LaunchEntry::Node(n)) in file.launch.iter().enumerate() {
+        let bad = |message: String| ConfigError::Structure {
+            file: source.to_string(),
+            line: None,
+            message: format!("launch[{i}].node: {message}"),
+        };
+        if n.pkg != "mrtwin" {
+            return Err(bad(format!("pkg '{}' is not mrtwin", n.pkg)));
+        }
+        if !["stand", "twin", "record"].contains(&n.exec.as_str()) {
+            return Err(bad(format!(
+                "exec '{}' is not stand, twin or record",
+                n.exec
+            )));
+        }
+        for p in &n.param {
+            match (&p.from, &p.name, &p.value) {
+                (Some(_), None, None) | (None, Some(_), Some(_)) => {}
+                _ => {
+                    return Err(bad(
+                        "each param is either {from: FILE} or {name: N, value: V}".into(),
+                    ))
+                }
+            }
+        }
+    }
+    Ok(file)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = "launch:\n  - node:\n      pkg: mrtwin\n      exec: twin\n      name: t\n      namespace: /lab\n      param:\n        - from: p.yaml\n        - {name: stale_after_s, value: 0.5}\n      remap:\n        - {from: a, to: b}\n";
+
+    #[test]
+    fn parses_and_builds_ros_args() {
+        let f = parse_launch(GOOD, "l.yaml").unwrap();
+        let LaunchEntry::Node(n) = &f.launch[0];
+        assert_eq!(
+            n.ros_args(Path::new("/cfg")),
+            [
+                "--ros-args",
+                "-r",
+                "__node:=t",
+                "-r",
+                "__ns:=/lab",
+                "--params-file",
+                "/cfg/p.yaml",
+                "-p",
+                "stale_after_s:=0.5",
+                "-r",
+                "a:=b"
+            ]
+        );
+    }
+
+    #[test]
+    fn unknown_key_names_file_key_and_line() {
+        let bad = GOOD.replace("      name: t\n", "      name: t\n      nmae: x\n");
+        let e = parse_launch(&bad, "l.yaml").unwrap_err().to_string();
+        assert!(
+            e.contains("l.yaml") && e.contains("nmae") && e.contains(":6"),
+            "{e}"
+        );
+        let bad = GOOD.replace("exec: twin", "exec: nope");
+        let e = parse_launch(&bad, "l.yaml").unwrap_err().to_string();
+        assert!(e.contains("exec 'nope'"), "{e}");
+    }
+}

@@ -1,0 +1,211 @@
+//! The nodes' parameters, in the ROS 2 `ros__parameters` convention (read with the
+//! `launch-config` crate: unknown keys and wrong types are errors naming file, key and line).
+//!
+//! ```yaml
+//! mrtwin_twin:
+//!   ros__parameters:
+//!     damper: damper            # names the hardware: zenoh keys, frame_id, hardware_id
+//!     model: two-chamber
+//!     effects: fluid_compressibility,gas_spring
+//!     transports: [ros2, zenoh, iceoryx2]
+//!     input: zenoh              # the transport the sensor samples come in on
+//!     two_chamber: { bulk_modulus_pa: 5.0e8 }
+//!     estimator: { memory_s: 1.0 }
+//!     health: { residual: { warn: 0.05, error: 0.15 } }
+//!     zenoh: { multicast_scouting: true }
+//! ```
+
+use serde::{Deserialize, Serialize};
+use twin::models::{
+    BinghamParams, DirectShearParams, ModelKind, ModelParams, SpencerParams, TwoChamberParams,
+};
+use twin::EffectSet;
+
+use crate::conditioning::ConditioningConfig;
+use crate::transports::TransportKind;
+
+/// Default node name of the twin.
+pub const TWIN_NODE: &str = "mrtwin_twin";
+/// Default node name of the stand.
+pub const STAND_NODE: &str = "mrtwin_stand";
+
+/// Parameters of the twin node (`mrtwin node`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TwinNodeParams {
+    /// Damper name.
+    pub damper: String,
+    /// Model: bingham, spencer, direct-shear, two-chamber.
+    pub model: String,
+    /// Effects of the two-chamber model, comma separated ids, `paper`, `all` or `none`;
+    /// empty: the model's defaults.
+    pub effects: String,
+    /// Ambient temperature when samples carry none \[°C\].
+    pub ambient_temperature_c: f64,
+    /// Transports to publish on.
+    pub transports: Vec<TransportKind>,
+    /// Transport the samples arrive on.
+    pub input: TransportKind,
+    /// Period of `/diagnostics` \[s\].
+    pub diagnostics_period_s: f64,
+    /// Period of the yield-estimate topic \[s\].
+    pub yield_estimate_period_s: f64,
+    /// Sensor silence after which health goes STALE \[s\] (wall clock).
+    pub stale_after_s: f64,
+    /// Serve the iceoryx2 request–response control service.
+    pub control_service: bool,
+    /// Sample conditioning.
+    pub conditioning: ConditioningConfig,
+    /// Estimator; `enabled: false` switches it off.
+    pub estimator: EstimatorSection,
+    /// Health thresholds.
+    pub health: estimation::health::HealthConfig,
+    /// `bingham` parameters.
+    pub bingham: BinghamParams,
+    /// `spencer` parameters.
+    pub spencer: SpencerParams,
+    /// `direct-shear` parameters.
+    pub direct_shear: DirectShearParams,
+    /// `two-chamber` parameters.
+    pub two_chamber: TwoChamberParams,
+    /// Transport settings.
+    pub zenoh: bridge::zenoh::ZenohConfig,
+    /// ROS 2 settings.
+    pub ros2: bridge::ros2::Ros2Config,
+    /// iceoryx2 settings.
+    pub iceoryx2: bridge::iceoryx2::Iceoryx2Config,
+}
+
+/// The estimator section: on/off plus the estimator's own settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct EstimatorSection {
+    /// Estimate τ0(I) online.
+    pub enabled: bool,
+    /// Settings.
+    pub settings: estimation::online::EstimatorConfig,
+}
+
+impl Default for EstimatorSection {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            settings: Default::default(),
+        }
+    }
+}
+
+impl Default for TwinNodeParams {
+    fn default() -> Self {
+        Self {
+            damper: "damper".into(),
+            model: "two-chamber".into(),
+            effects: String::new(),
+            ambient_temperature_c: 25.0,
+            transports: vec![
+                TransportKind::Ros2,
+                TransportKind::Zenoh,
+                TransportKind::Iceoryx2,
+            ],
+            input: TransportKind::Zenoh,
+            diagnostics_period_s: 1.0,
+            yield_estimate_period_s: 0.1,
+            stale_after_s: 0.5,
+            control_service: true,
+            conditioning: Default::default(),
+            estimator: Default::default(),
+            health: Default::default(),
+            bingham: Default::default(),
+            spencer: Default::default(),
+            direct_shear: Default::default(),
+            two_chamber: Default::default(),
+            zenoh: Default::default(),
+            ros2: Default::default(),
+            iceoryx2: Default::default(),
+        }
+    }
+}
+
+/// A parameter that parsed but makes no sense.
+#[derive(Debug, thiserror::Error)]
+#[error("parameter '{key}': {reason}")]
+pub struct InvalidParam {
+    /// Dotted key.
+    pub key: &'static str,
+    /// Why.
+    pub reason: String,
+}
+
+/// Model, parameters and effects of a `model`/`effects` pair.
+pub fn model_selection(
+    model: &str,
+    effects: &str,
+    params: ModelParams,
+) -> Result<(ModelKind, ModelParams, EffectSet), InvalidParam> {
+    let kind: ModelKind = model
+        .parse()
+        .map_err(|e: twin::models::UnknownModel| InvalidParam {
+            key: "model",
+            reason: e.to_string(),
+        })?;
+    let effects = match effects.trim() {
+        "" => kind.default_effects(),
+        "paper" => EffectSet::paper(),
+        "all" => EffectSet::all(),
+        list => EffectSet::parse_list(list).map_err(|e| InvalidParam {
+            key: "effects",
+            reason: e.to_string(),
+        })?,
+    };
+    Ok((kind, params, effects))
+}
+
+impl TwinNodeParams {
+    /// The model parameters of the four sections.
+    pub fn model_params(&self) -> ModelParams {
+        ModelParams {
+            bingham: self.bingham.clone(),
+            spencer: self.spencer.clone(),
+            direct_shear: self.direct_shear.clone(),
+            two_chamber: self.two_chamber.clone(),
+        }
+    }
+
+    /// Check what serde cannot.
+    pub fn validate(&self) -> Result<(), InvalidParam> {
+        model_selection(&self.model, &self.effects, self.model_params())?;
+        let positive = |key: &'static str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(InvalidParam {
+                    key,
+                    reason: format!("must be a positive number, got {v}"),
+                })
+            }
+        };
+        positive("diagnostics_period_s", self.diagnostics_period_s)?;
+        positive("yield_estimate_period_s", self.yield_estimate_period_s)?;
+        positive("stale_after_s", self.stale_after_s)?;
+        positive("conditioning.max_gap_s", self.conditioning.max_gap_s)?;
+        if self.damper.is_empty() || self.damper.contains(['/', '*', '$', '?', '#', ' ']) {
+            return Err(InvalidParam {
+                key: "damper",
+                reason: format!(
+                    "'{}' must be a non-empty name without / * $ ? # or spaces",
+                    self.damper
+                ),
+            });
+        }
+        if !self.transports.contains(&self.input) {
+            return Err(InvalidParam {
+                key: "input",
+                reason: format!(
+                    "'{}' is not among transports {:?}",
+                    self.input, self.transports
+                ),
+            });
+        }
+        Ok(())
+    }
+}

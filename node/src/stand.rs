@@ -1,0 +1,308 @@
+//! The test stand as a live sensor stream: a damper model driven through a programme of
+//! harmonic strokes (the programme repeats), sampled at `rate_hz` with real-time pacing,
+//! with force-sensor noise, published as `DamperSample` on the chosen transports. Faults
+//! can be injected to exercise the twin: dropped, duplicated, swapped (out-of-order) and
+//! NaN samples, and a period of silence.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use bridge::transport::{Message, Topic, Transport};
+use rand::{Rng, SeedableRng};
+use rand_distr::{Distribution, Normal};
+use serde::{Deserialize, Serialize};
+use twin::models::{
+    build, BinghamParams, DirectShearParams, ModelParams, SpencerParams, TwoChamberParams,
+};
+use twin::stand::Programme;
+
+use crate::conditioning::SensorSample;
+use crate::config::{model_selection, InvalidParam};
+use crate::runner::{split_name, NodeError};
+use crate::transports::{open, TransportKind, TransportSettings};
+
+/// Faults to inject (probabilities per sample).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields, default)]
+pub struct Faults {
+    /// Drop the sample.
+    pub drop_probability: f64,
+    /// Send the sample twice.
+    pub duplicate_probability: f64,
+    /// Swap the sample with the next one (out-of-order stamps).
+    pub swap_probability: f64,
+    /// Replace the force with NaN.
+    pub nan_probability: f64,
+    /// Go silent at this time since start \[s\] …
+    pub silence_at_s: Option<f64>,
+    /// … for this long \[s\].
+    pub silence_for_s: f64,
+}
+
+/// Parameters of the stand node (`mrtwin stand`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct StandParams {
+    /// Damper name.
+    pub damper: String,
+    /// Model that plays the damper.
+    pub model: String,
+    /// Its effects (see the twin node).
+    pub effects: String,
+    /// Stroke amplitude \[m\].
+    pub amplitude_m: f64,
+    /// Frequencies \[Hz\] (inner loop of the programme).
+    pub frequencies_hz: Vec<f64>,
+    /// Currents \[A\] (outer loop).
+    pub currents_a: Vec<f64>,
+    /// Duration of each segment \[s\].
+    pub segment_duration_s: f64,
+    /// Sample rate \[Hz\].
+    pub rate_hz: f64,
+    /// Force-sensor noise, standard deviation \[N\].
+    pub noise_n: f64,
+    /// Random seed (noise and faults).
+    pub seed: u64,
+    /// Ambient temperature \[°C\].
+    pub ambient_temperature_c: f64,
+    /// Publish the temperature channel (else NaN: not measured).
+    pub temperature_channel: bool,
+    /// Transports to publish on.
+    pub transports: Vec<TransportKind>,
+    /// Fault injection.
+    pub faults: Faults,
+    /// `bingham` parameters.
+    pub bingham: BinghamParams,
+    /// `spencer` parameters.
+    pub spencer: SpencerParams,
+    /// `direct-shear` parameters.
+    pub direct_shear: DirectShearParams,
+    /// `two-chamber` parameters.
+    pub two_chamber: TwoChamberParams,
+    /// zenoh settings.
+    pub zenoh: bridge::zenoh::ZenohConfig,
+    /// ROS 2 settings.
+    pub ros2: bridge::ros2::Ros2Config,
+    /// iceoryx2 settings.
+    pub iceoryx2: bridge::iceoryx2::Iceoryx2Config,
+}
+
+impl Default for StandParams {
+    fn default() -> Self {
+        Self {
+            damper: "damper".into(),
+            model: "two-chamber".into(),
+            effects: String::new(),
+            amplitude_m: 0.010,
+            frequencies_hz: vec![1.0, 2.0, 4.0],
+            currents_a: vec![0.5, 1.0, 2.0],
+            segment_duration_s: 3.0,
+            rate_hz: 1000.0,
+            noise_n: 5.0,
+            seed: 1,
+            ambient_temperature_c: 25.0,
+            temperature_channel: false,
+            transports: vec![TransportKind::Zenoh],
+            faults: Faults::default(),
+            bingham: Default::default(),
+            spencer: Default::default(),
+            direct_shear: Default::default(),
+            two_chamber: Default::default(),
+            zenoh: Default::default(),
+            ros2: Default::default(),
+            iceoryx2: Default::default(),
+        }
+    }
+}
+
+impl StandParams {
+    /// The programme.
+    pub fn programme(&self) -> Programme {
+        let mut p = Programme::grid(
+            self.amplitude_m,
+            &self.frequencies_hz,
+            &self.currents_a,
+            self.segment_duration_s,
+            self.rate_hz,
+        );
+        p.ambient_temperature_c = self.ambient_temperature_c;
+        p
+    }
+
+    fn model_params(&self) -> ModelParams {
+        ModelParams {
+            bingham: self.bingham.clone(),
+            spencer: self.spencer.clone(),
+            direct_shear: self.direct_shear.clone(),
+            two_chamber: self.two_chamber.clone(),
+        }
+    }
+
+    fn validate(&self) -> Result<(), InvalidParam> {
+        let bad = |key, reason: String| Err(InvalidParam { key, reason });
+        if !(self.rate_hz.is_finite() && self.rate_hz > 0.0 && self.rate_hz <= 1e6) {
+            return bad(
+                "rate_hz",
+                format!("must be in (0, 1e6], got {}", self.rate_hz),
+            );
+        }
+        if self.frequencies_hz.is_empty() || self.currents_a.is_empty() {
+            return bad(
+                "frequencies_hz",
+                "the programme needs at least one frequency and one current".into(),
+            );
+        }
+        if !(self.segment_duration_s > 0.0) {
+            return bad("segment_duration_s", "must be positive".into());
+        }
+        if !(self.noise_n >= 0.0) {
+            return bad("noise_n", "must be ≥ 0".into());
+        }
+        Ok(())
+    }
+}
+
+/// What the stand did.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StandSummary {
+    /// Samples generated.
+    pub generated: u64,
+    /// Messages published (after faults).
+    pub published: u64,
+    /// Publish errors.
+    pub errors: u64,
+    /// Largest lateness behind the real-time schedule \[s\].
+    pub max_lateness_s: f64,
+}
+
+/// The stand node.
+pub struct StandNode {
+    params: StandParams,
+    transports: Vec<Box<dyn Transport>>,
+}
+
+impl StandNode {
+    /// Open the transports.
+    pub fn new(params: StandParams, node_name: &str) -> Result<Self, NodeError> {
+        params.validate()?;
+        model_selection(&params.model, &params.effects, params.model_params())?;
+        let (namespace, name) = split_name(node_name);
+        let settings = TransportSettings {
+            damper: params.damper.clone(),
+            node_name: name.to_string(),
+            namespace: namespace.to_string(),
+            ros2: params.ros2.clone(),
+            zenoh: params.zenoh.clone(),
+            iceoryx2: params.iceoryx2.clone(),
+        };
+        let mut transports = Vec::new();
+        for &k in &params.transports {
+            transports.push(open(k, &settings, &[Topic::Sample], &[])?);
+        }
+        Ok(Self { params, transports })
+    }
+
+    /// Play until `stop` or `duration` (wall clock).
+    pub fn run(
+        &mut self,
+        stop: Option<&AtomicBool>,
+        duration: Option<Duration>,
+    ) -> Result<StandSummary, NodeError> {
+        let p = &self.params;
+        let (kind, mp, effects) = model_selection(&p.model, &p.effects, p.model_params())?;
+        let mut model = build(kind, &mp, effects)?;
+        let programme = p.programme();
+        let cycle = programme.sample_count().max(1);
+        let noise = Normal::new(0.0, p.noise_n.max(1e-300)).expect("σ > 0");
+        let mut rng = rand::rngs::StdRng::seed_from_u64(p.seed);
+        let epoch0 = SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .map_or(0.0, |d| d.as_secs_f64());
+        let start = Instant::now();
+        let dt = 1.0 / p.rate_hz;
+        let mut summary = StandSummary::default();
+        let mut held: Option<SensorSample> = None;
+        for k in 0u64.. {
+            let due = start + Duration::from_secs_f64(k as f64 * dt);
+            if stop.is_some_and(|f| f.load(Ordering::Relaxed))
+                || duration.is_some_and(|d| due >= start + d)
+            {
+                break;
+            }
+            let now = Instant::now();
+            if due > now {
+                let wait = due - now;
+                if wait > Duration::from_micros(300) {
+                    std::thread::sleep(wait - Duration::from_micros(200));
+                }
+                while Instant::now() < due {
+                    std::hint::spin_loop();
+                }
+            } else {
+                summary.max_lateness_s = summary.max_lateness_s.max((now - due).as_secs_f64());
+            }
+            let (_, _, input) = programme.input_at(k as usize % cycle);
+            let out = if k == 0 {
+                model.reset(&input);
+                model.step(&input, 0.0)
+            } else {
+                model.step(&input, dt)
+            };
+            summary.generated += 1;
+            let t_rel = k as f64 * dt;
+            let f = &p.faults;
+            if f.silence_at_s
+                .is_some_and(|t0| t_rel >= t0 && t_rel < t0 + f.silence_for_s)
+            {
+                continue;
+            }
+            let mut sample = SensorSample {
+                time_s: epoch0 + t_rel,
+                displacement_m: input.displacement_m,
+                velocity_m_s: input.velocity_m_s,
+                force_n: out.force_n
+                    + if p.noise_n > 0.0 {
+                        noise.sample(&mut rng)
+                    } else {
+                        0.0
+                    },
+                current_a: input.current_a,
+                temperature_c: if p.temperature_channel {
+                    out.fluid_temperature_c
+                } else {
+                    f64::NAN
+                },
+            };
+            if rng.random::<f64>() < f.drop_probability {
+                continue;
+            }
+            if rng.random::<f64>() < f.nan_probability {
+                sample.force_n = f64::NAN;
+            }
+            let mut batch = Vec::with_capacity(3);
+            if let Some(h) = held.take() {
+                batch.push(sample);
+                batch.push(h);
+            } else if rng.random::<f64>() < f.swap_probability {
+                held = Some(sample);
+            } else {
+                batch.push(sample);
+            }
+            if rng.random::<f64>() < f.duplicate_probability {
+                if let Some(&last) = batch.last() {
+                    batch.push(last);
+                }
+            }
+            for s in batch {
+                let msg = Message::Sample(s.to_msg(&p.damper));
+                for t in &mut self.transports {
+                    match t.publish(&msg) {
+                        Ok(()) => summary.published += 1,
+                        Err(_) => summary.errors += 1,
+                    }
+                }
+            }
+        }
+        Ok(summary)
+    }
+}
