@@ -12,3 +12,11 @@ cargo run --release -q -p mrtwin -- simulate --model two-chamber --frequency 2 \
   --out "$out/simulated-two-chamber"
 cargo test --release -q -p bridge --test bag -- --ignored --exact regenerate_real_fixture
 du -sh "$out"/*
+
+# Golden replay outputs (cli/tests/replay.rs compares fresh replays against them).
+# Regenerate only on purpose, when the twin's physics or defaults change, and say why.
+mkdir -p tests/fixtures/golden
+for bag in simulated-two-chamber utfsm-10mm1Hz1A; do
+  cargo run --release -q -p mrtwin -- replay "$out/$bag" --out "tests/fixtures/golden/$bag.replay.csv"
+done
+du -sh tests/fixtures/golden/*

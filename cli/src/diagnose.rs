@@ -39,8 +39,9 @@ pub struct DiagnoseArgs {
 }
 
 /// Read the recording to diagnose.
+/// A CSV recording or a bag (directory or .mcap), see [`bridge::open_recording`].
 pub fn load_input(path: &Path) -> Result<Recording> {
-    bridge::recording::read_csv(path)
+    bridge::open_recording(path)
         .with_context(|| format!("cannot use {} as a recording", path.display()))
 }
 

@@ -249,3 +249,173 @@ fn iceoryx2_controller_process_runs_1khz_for_10s_against_the_node_without_loss()
     assert_eq!(summary.rejected, 0, "{summary:?}");
     assert!(out.contains("control requests"), "{out}");
 }
+
+/// An rclpy node (Fast DDS from PyPI): publishes damper samples as the standard
+/// `std_msgs/Float64MultiArray` on `<ns>/sensor/sample_array`, listens to the twin's
+/// predicted force (`std_msgs/Float64`) and `/diagnostics`, and reports rclpy's view of
+/// the graph. Prints one JSON object.
+const RCLPY_PEER: &str = r#"
+import json, math, sys, time
+import rclpy
+from rclpy.qos import QoSProfile, ReliabilityPolicy, HistoryPolicy
+from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension
+from diagnostic_msgs.msg import DiagnosticArray
+ns, label = sys.argv[1], sys.argv[2]
+rclpy.init()
+node = rclpy.create_node("rclpy_peer")
+forces, diags = [], []
+qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+node.create_subscription(Float64, f"{ns}/twin/predicted_force", lambda m: forces.append(m.data), qos)
+node.create_subscription(DiagnosticArray, "/diagnostics", lambda m: diags.append([(s.name, int.from_bytes(s.level, "little") if isinstance(s.level, bytes) else int(s.level)) for s in m.status]), 10)
+pub = node.create_publisher(Float64MultiArray, f"{ns}/sensor/sample_array", QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT))
+deadline = time.time() + 25
+while pub.get_subscription_count() == 0 and time.time() < deadline:
+    rclpy.spin_once(node, timeout_sec=0.05)
+matched = pub.get_subscription_count()
+t0 = time.time()
+sent = 0
+for k in range(1000):
+    t = t0 + k * 0.002
+    w = 2 * math.pi * 2.0
+    x, v = 0.01 * math.sin(w * (t - t0)), 0.01 * w * math.cos(w * (t - t0))
+    m = Float64MultiArray()
+    m.layout.dim = [MultiArrayDimension(label=label, size=6, stride=6)]
+    m.data = [t, x, v, 0.0, 1.0, float("nan")]
+    pub.publish(m)
+    sent += 1
+    end = t0 + (k + 1) * 0.002
+    while time.time() < end:
+        rclpy.spin_once(node, timeout_sec=max(0.0, end - time.time()))
+deadline = time.time() + 5
+while time.time() < deadline and len(forces) < sent:
+    rclpy.spin_once(node, timeout_sec=0.05)
+graph = node.get_topic_names_and_types()
+nodes = node.get_node_names_and_namespaces()
+print(json.dumps({"matched": matched, "sent": sent, "forces": forces, "diags": diags,
+                  "topics": {n: t for n, t in graph}, "nodes": nodes}))
+node.destroy_node()
+rclpy.shutdown()
+"#;
+
+#[test]
+fn rclpy_feeds_the_twin_and_reads_its_force_diagnostics_and_graph() {
+    let dir = TempDir::new("rclpy_twin");
+    let domain = 91; // this test's own ROS domain
+    let params = dir.path("twin.yaml");
+    write(
+        &params,
+        "mrtwin_twin:\n  ros__parameters:\n    damper: rclpydamper\n    model: two-chamber\n    transports: [ros2]\n    input: ros2\n    control_service: false\n    ros2:\n      domain_id: 91\n",
+    );
+    let node = ChildGuard::spawn(mrtwin().args([
+        "node",
+        "--duration",
+        "40",
+        "--ros-args",
+        "--params-file",
+        params.to_str().unwrap(),
+        "-r",
+        "__ns:=/rig",
+    ]));
+    let out = run_python_env(
+        RCLPY_PEER,
+        &["/rig", msgs::SAMPLE_ARRAY_LABEL],
+        &[
+            ("ROS_DOMAIN_ID", &domain.to_string()),
+            ("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp"),
+        ],
+    );
+    node.interrupt();
+    let (ok, node_out, err) = node.wait(Duration::from_secs(20));
+    assert!(ok, "node failed: {err}");
+    let v: serde_json::Value =
+        serde_json::from_str(out.lines().last().unwrap()).expect("rclpy JSON");
+    assert!(
+        v["matched"].as_u64().unwrap() >= 1,
+        "rclpy publisher never matched the twin: {v}"
+    );
+    // The twin consumed rclpy's samples: it printed how many it stepped.
+    let stepped: u64 = node_out
+        .split(" stepped")
+        .next()
+        .and_then(|s| s.rsplit(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or(0);
+    assert!(
+        stepped >= 900,
+        "twin stepped on {stepped} of 1000 rclpy samples: {node_out}"
+    );
+    let forces: Vec<f64> = v["forces"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f.as_f64().unwrap_or(f64::NAN))
+        .collect();
+    assert!(
+        forces.len() >= 900,
+        "rclpy got {} predicted forces",
+        forces.len()
+    );
+    assert!(
+        forces.iter().all(|f| f.is_finite() && f.abs() < 1e5),
+        "implausible forces"
+    );
+    assert!(
+        forces.iter().any(|f| *f > 0.0) && forces.iter().any(|f| *f < 0.0),
+        "force never changed sign over a stroke"
+    );
+    let names: Vec<String> = v["diags"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|a| {
+            a.as_array()
+                .unwrap()
+                .iter()
+                .map(|p| p[0].as_str().unwrap().to_string())
+        })
+        .collect();
+    assert!(
+        names.iter().any(|n| n == "/rig/mrtwin_twin: sensor stream"),
+        "diagnostic names: {names:?}"
+    );
+    assert!(
+        names
+            .iter()
+            .any(|n| n == "/rig/mrtwin_twin: prediction residual"),
+        "diagnostic names: {names:?}"
+    );
+    let topics = &v["topics"];
+    for (t, ty) in [
+        ("/rig/twin/predicted_force", "std_msgs/msg/Float64"),
+        ("/rig/twin/output", "mrtwin_msgs/msg/TwinOutput"),
+        ("/rig/twin/yield_estimate", "mrtwin_msgs/msg/YieldEstimate"),
+        ("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray"),
+    ] {
+        let types: Vec<&str> = topics[t]
+            .as_array()
+            .map(|a| a.iter().filter_map(|x| x.as_str()).collect())
+            .unwrap_or_default();
+        assert!(
+            types.contains(&ty),
+            "{t} has types {types:?} in rclpy's graph"
+        );
+    }
+    let nodes = v["nodes"].as_array().unwrap();
+    assert!(
+        nodes
+            .iter()
+            .any(|n| n[0] == "mrtwin_twin" && n[1] == "/rig"),
+        "nodes: {nodes:?}"
+    );
+}
+
+fn run_python_env(script: &str, args: &[&str], env: &[(&str, &str)]) -> String {
+    let mut cmd = Command::new(mrtwin_tests::python());
+    cmd.arg("-c").arg(script).args(args);
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    let (ok, out, err) = ChildGuard::spawn(&mut cmd).wait(Duration::from_secs(60));
+    assert!(ok, "rclpy peer failed:\n{err}\n{out}");
+    out
+}

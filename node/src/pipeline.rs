@@ -82,7 +82,14 @@ pub struct TwinPipeline {
     health: HealthMonitor,
     last_input: Option<DamperInput>,
     rod_area_m2: Option<f64>,
+    /// Worst health level, re-evaluated every [`LEVEL_PERIOD_S`] of sample time (building
+    /// every check costs a few µs; the checks' windows move in 0.2 s blocks anyway).
+    level: Level,
+    level_time_s: f64,
 }
+
+/// Sample time between two evaluations of the worst health level \[s\].
+pub const LEVEL_PERIOD_S: f64 = 0.01;
 
 impl TwinPipeline {
     /// Build the model and the estimator.
@@ -103,6 +110,8 @@ impl TwinPipeline {
             estimator,
             last_input: None,
             rod_area_m2,
+            level: Level::Stale,
+            level_time_s: f64::NEG_INFINITY,
             cfg,
         })
     }
@@ -142,9 +151,17 @@ impl TwinPipeline {
         self.health.checks()
     }
 
-    /// Worst health level now.
+    /// Worst health level (as of the last evaluation, at most [`LEVEL_PERIOD_S`] of sample
+    /// time ago).
     pub fn health_level(&self) -> Level {
-        self.health.level()
+        self.level
+    }
+
+    fn refresh_level(&mut self, time_s: f64) {
+        if time_s.is_nan() || time_s - self.level_time_s >= LEVEL_PERIOD_S {
+            self.level = self.health.level();
+            self.level_time_s = time_s;
+        }
     }
 
     fn input_of(&self, s: &SensorSample, dt: Option<f64>) -> DamperInput {
@@ -182,6 +199,7 @@ impl TwinPipeline {
                     rejected: true,
                     gas_preload_pa: None,
                 });
+                self.refresh_level(s.time_s);
                 return Processed::Dropped(d);
             }
         };
@@ -226,13 +244,14 @@ impl TwinPipeline {
             rejected: matches!(outcome, Some(UpdateOutcome::Rejected(_))),
             gas_preload_pa,
         });
+        self.refresh_level(s.time_s);
         Processed::Stepped(TwinStep {
             sample: *s,
             output,
             residual_n,
             estimate,
             estimator: outcome,
-            health: self.health.level(),
+            health: self.level,
         })
     }
 
@@ -244,10 +263,11 @@ impl TwinPipeline {
             return f64::NAN;
         };
         let dt = s.time_s - t0;
-        if !(dt >= 0.0 && dt <= self.cfg.conditioning.max_gap_s && planned_current_a.is_finite())
-            || !s.displacement_m.is_finite()
-            || !s.velocity_m_s.is_finite()
-        {
+        let usable = (0.0..=self.cfg.conditioning.max_gap_s).contains(&dt)
+            && planned_current_a.is_finite()
+            && s.displacement_m.is_finite()
+            && s.velocity_m_s.is_finite();
+        if !usable {
             return f64::NAN;
         }
         let mut m = self.model.clone_box();

@@ -152,10 +152,10 @@ impl StandParams {
                 "the programme needs at least one frequency and one current".into(),
             );
         }
-        if !(self.segment_duration_s > 0.0) {
+        if self.segment_duration_s.is_nan() || self.segment_duration_s <= 0.0 {
             return bad("segment_duration_s", "must be positive".into());
         }
-        if !(self.noise_n >= 0.0) {
+        if self.noise_n.is_nan() || self.noise_n < 0.0 {
             return bad("noise_n", "must be ≥ 0".into());
         }
         Ok(())
