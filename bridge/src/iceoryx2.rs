@@ -849,3 +849,9 @@ impl Backoff {
         }
     }
 }
+
+/// Keep iceoryx2's own logging to errors: it otherwise warns once per process that no
+/// config file was found and defaults are used, which is the intended setup here.
+pub fn quiet_logs() {
+    iceoryx2::prelude::set_log_level(iceoryx2::prelude::LogLevel::Error);
+}

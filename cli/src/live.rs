@@ -88,6 +88,11 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         damper: damper.clone(),
         transports: all.clone(),
         rate_hz: args.rate,
+        // One stroke frequency, three currents of 3 s each: the default 10 s shows the
+        // estimate at every current.
+        frequencies_hz: vec![2.0],
+        currents_a: vec![0.5, 1.0, 2.0],
+        segment_duration_s: 3.0,
         ..Default::default()
     };
     stand.zenoh.multicast_scouting = false;

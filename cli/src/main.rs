@@ -70,6 +70,7 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    bridge::iceoryx2::quiet_logs();
     let cli = Cli::parse();
     let result = match &cli.command {
         Command::Simulate(args) => simulate::run(args),

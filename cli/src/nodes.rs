@@ -130,7 +130,7 @@ pub fn run_launch(args: &LaunchArgs) -> Result<()> {
     let exe = std::env::current_exe().context("locate the mrtwin executable")?;
     let stop = stop_flag()?;
     let mut children: Vec<(String, Child)> = Vec::new();
-    for LaunchEntry::Node(n) in &file.launch {
+    for LaunchEntry { node: n } in &file.launch {
         let sub = match n.exec.as_str() {
             "twin" => "node",
             other => other,

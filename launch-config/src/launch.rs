@@ -32,12 +32,12 @@ pub struct LaunchFile {
     pub launch: Vec<LaunchEntry>,
 }
 
-/// One entry of `launch:`.
+/// One entry of `launch:` (only `- node: {...}` entries exist here).
 #[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields, rename_all = "lowercase")]
-pub enum LaunchEntry {
+#[serde(deny_unknown_fields)]
+pub struct LaunchEntry {
     /// `- node: {...}`.
-    Node(NodeEntry),
+    pub node: NodeEntry,
 }
 
 /// A node to start.
@@ -134,7 +134,7 @@ pub fn load_launch(path: &Path) -> Result<LaunchFile, ConfigError> {
 /// Parse and check the text of a launch file; `source` names it in errors.
 pub fn parse_launch(text: &str, source: &str) -> Result<LaunchFile, ConfigError> {
     let file: LaunchFile = parse_params(text, source, "/launch")?;
-    for (i, LaunchEntry::Node(n)) in file.launch.iter().enumerate() {
+    for (i, LaunchEntry { node: n }) in file.launch.iter().enumerate() {
         let bad = |message: String| ConfigError::Structure {
             file: source.to_string(),
             line: None,
@@ -172,7 +172,7 @@ mod tests {
     #[test]
     fn parses_and_builds_ros_args() {
         let f = parse_launch(GOOD, "l.yaml").unwrap();
-        let LaunchEntry::Node(n) = &f.launch[0];
+        let n = &f.launch[0].node;
         assert_eq!(
             n.ros_args(Path::new("/cfg")),
             [
