@@ -196,7 +196,7 @@ mod tests {
         let bad = GOOD.replace("      name: t\n", "      name: t\n      nmae: x\n");
         let e = parse_launch(&bad, "l.yaml").unwrap_err().to_string();
         assert!(
-            e.contains("l.yaml") && e.contains("nmae") && e.contains(":6"),
+            e.contains("l.yaml") && e.contains("nmae") && e.contains("line 6"),
             "{e}"
         );
         let bad = GOOD.replace("exec: twin", "exec: nope");
