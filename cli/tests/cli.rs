@@ -5,8 +5,10 @@
 //! through `CARGO_BIN_EXE_mrtwin`; other packages get neither guarantee.
 
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
+
+use mrtwin_tests::TempDir;
 
 /// Run `mrtwin` with `args`.
 fn mrtwin<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> Output {
@@ -39,28 +41,6 @@ fn fails(o: &Output) -> String {
     );
     assert!(err.starts_with("error: "), "stderr: {err}");
     err
-}
-
-/// A fresh temporary directory for one test, removed when dropped.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(test: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!("mrtwin-cli-{test}-{}", std::process::id()));
-        let _ = fs::remove_dir_all(&dir);
-        fs::create_dir_all(&dir).expect("cannot create temporary directory");
-        Self(dir)
-    }
-
-    fn path(&self, name: &str) -> PathBuf {
-        self.0.join(name)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = fs::remove_dir_all(&self.0);
-    }
 }
 
 /// A short two-chamber run: 2 segments of 0.5 s at 1000 Hz.

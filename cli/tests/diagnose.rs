@@ -2,8 +2,10 @@
 //! and without findings, bad input rejected with a clear message.
 
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
+
+use mrtwin_tests::TempDir;
 
 use bridge::recording::{write_csv, Recording, Sample};
 use diagnose::study::{generate, Scenario, YieldLaw};
@@ -18,28 +20,6 @@ fn mrtwin<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> Output {
 
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-/// A fresh temporary directory for one test, removed when dropped.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(test: &str) -> Self {
-        let dir =
-            std::env::temp_dir().join(format!("mrtwin-diagnose-{test}-{}", std::process::id()));
-        let _ = fs::remove_dir_all(&dir);
-        fs::create_dir_all(&dir).expect("cannot create temporary directory");
-        Self(dir)
-    }
-    fn path(&self, name: &str) -> PathBuf {
-        self.0.join(name)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = fs::remove_dir_all(&self.0);
-    }
 }
 
 /// Write the study recording of `scn` (seed 7) as CSV.

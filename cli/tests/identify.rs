@@ -2,8 +2,10 @@
 //! `mrtwin simulate` made with the direct-shear model and the paper's law (5.5).
 
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
+
+use mrtwin_tests::TempDir;
 
 fn mrtwin<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_mrtwin"))
@@ -29,29 +31,6 @@ fn fails(o: &Output) -> String {
     );
     assert!(err.starts_with("error: "), "stderr: {err}");
     err
-}
-
-/// A fresh temporary directory for one test, removed when dropped.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(test: &str) -> Self {
-        let dir =
-            std::env::temp_dir().join(format!("mrtwin-identify-{test}-{}", std::process::id()));
-        let _ = fs::remove_dir_all(&dir);
-        fs::create_dir_all(&dir).expect("cannot create temporary directory");
-        Self(dir)
-    }
-
-    fn path(&self, name: &str) -> PathBuf {
-        self.0.join(name)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = fs::remove_dir_all(&self.0);
-    }
 }
 
 /// One test from rest: 10 mm stroke, 30 ms at 20 kHz (the first loading), 0.1 % noise.

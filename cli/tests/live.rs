@@ -13,6 +13,14 @@ use bridge::iceoryx2::controller::{run_controller, ControllerOptions};
 use bridge::iceoryx2::Iceoryx2Config;
 use mrtwin_tests::{free_port, run_python, ChildGuard, TempDir};
 
+/// The live tests start several processes each and check timing (staleness within 2 s,
+/// 1 kHz without loss): on a 2-core machine they run one at a time.
+static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn serial() -> std::sync::MutexGuard<'static, ()> {
+    SERIAL.lock().unwrap_or_else(|p| p.into_inner())
+}
+
 fn mrtwin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_mrtwin"))
 }
@@ -71,6 +79,7 @@ with lock:
 
 #[test]
 fn zenoh_peer_gets_twin_outputs_and_health_goes_stale_then_ok() {
+    let _serial = serial();
     let dir = TempDir::new("zenoh_stale");
     let port = free_port();
     let damper = format!("zs{}", std::process::id());
@@ -207,6 +216,7 @@ fn zenoh_peer_gets_twin_outputs_and_health_goes_stale_then_ok() {
 
 #[test]
 fn iceoryx2_controller_process_runs_1khz_for_10s_against_the_node_without_loss() {
+    let _serial = serial();
     let dir = TempDir::new("ice_loop");
     let prefix = format!("mrtwin/icetest{}", std::process::id());
     let params = dir.path("twin.yaml");
@@ -299,6 +309,7 @@ rclpy.shutdown()
 
 #[test]
 fn rclpy_feeds_the_twin_and_reads_its_force_diagnostics_and_graph() {
+    let _serial = serial();
     let dir = TempDir::new("rclpy_twin");
     let domain = 91; // this test's own ROS domain
     let params = dir.path("twin.yaml");
@@ -422,6 +433,7 @@ fn run_python_env(script: &str, args: &[&str], env: &[(&str, &str)]) -> String {
 
 #[test]
 fn demo_runs_stand_and_twin_over_all_three_transports() {
+    let _serial = serial();
     let o = mrtwin()
         .args(["demo", "--duration", "4", "--domain-id", "93"])
         .output()
@@ -459,6 +471,7 @@ fn demo_runs_stand_and_twin_over_all_three_transports() {
 
 #[test]
 fn launch_brings_up_twin_and_stand_and_stops_them() {
+    let _serial = serial();
     let dir = TempDir::new("launch");
     let port = free_port();
     let damper = format!("la{}", std::process::id());
