@@ -3,6 +3,9 @@
 //! encapsulation header (encoding `application/cdr`), the same bytes DDS and rosbag2 carry,
 //! so a zenoh-bridge-ros2dds user and a plain zenoh subscriber read the same thing.
 //!
+//! QoS: every topic is published with congestion control `Block` (reliable), so neither
+//! samples nor outputs are lost when the link is busy; a publisher waits instead.
+//!
 //! Peer mode by default: no router is needed; peers find each other by multicast
 //! scouting, or by the `connect`/`listen` endpoints given in the configuration.
 
@@ -117,9 +120,11 @@ impl ZenohTransport {
         let mut publishers = HashMap::new();
         for &t in publish {
             let key = cfg.key(damper, t);
+            let congestion = zenoh::qos::CongestionControl::Block;
             let p = session
                 .declare_publisher(key.clone())
                 .encoding(zenoh::bytes::Encoding::APPLICATION_CDR)
+                .congestion_control(congestion)
                 .wait()
                 .map_err(|e| TransportError::new(NAME, format!("declare publisher {key}"), e))?;
             publishers.insert(t, p);
