@@ -68,15 +68,13 @@ pub fn run(args: &RecordArgs) -> Result<()> {
     if !(args.flush_period.is_finite() && args.flush_period > 0.0) {
         bail!("--flush-period must be positive, got {}", args.flush_period);
     }
-    let (namespace, node_name) = node::runner::split_name(&name);
-    let settings = TransportSettings {
-        damper: params.damper.clone(),
-        node_name: node_name.to_string(),
-        namespace: namespace.to_string(),
-        ros2: params.ros2.clone(),
-        zenoh: params.zenoh.clone(),
-        iceoryx2: params.iceoryx2.clone(),
-    };
+    let settings = TransportSettings::new(
+        &params.damper,
+        &name,
+        &params.ros2,
+        &params.zenoh,
+        &params.iceoryx2,
+    );
     let mut transport = open(args.transport, &settings, &[], &topics)?;
     let mut writer = BagWriter::create(
         &args.out,

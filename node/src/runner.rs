@@ -101,15 +101,13 @@ impl TwinNode {
                 .then(|| params.estimator.settings.clone()),
             health: params.health.clone(),
         })?;
-        let (namespace, name) = split_name(node_name);
-        let settings = TransportSettings {
-            damper: params.damper.clone(),
-            node_name: name.to_string(),
-            namespace: namespace.to_string(),
-            ros2: params.ros2.clone(),
-            zenoh: params.zenoh.clone(),
-            iceoryx2: params.iceoryx2.clone(),
-        };
+        let settings = TransportSettings::new(
+            &params.damper,
+            node_name,
+            &params.ros2,
+            &params.zenoh,
+            &params.iceoryx2,
+        );
         let outputs = [
             Topic::Output,
             Topic::PredictedForce,

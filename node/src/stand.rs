@@ -18,7 +18,7 @@ use twin::stand::Programme;
 
 use crate::conditioning::SensorSample;
 use crate::config::{model_selection, InvalidParam};
-use crate::runner::{split_name, NodeError};
+use crate::runner::NodeError;
 use crate::transports::{open, TransportKind, TransportSettings};
 
 /// Faults to inject (probabilities per sample).
@@ -186,15 +186,13 @@ impl StandNode {
     pub fn new(params: StandParams, node_name: &str) -> Result<Self, NodeError> {
         params.validate()?;
         model_selection(&params.model, &params.effects, params.model_params())?;
-        let (namespace, name) = split_name(node_name);
-        let settings = TransportSettings {
-            damper: params.damper.clone(),
-            node_name: name.to_string(),
-            namespace: namespace.to_string(),
-            ros2: params.ros2.clone(),
-            zenoh: params.zenoh.clone(),
-            iceoryx2: params.iceoryx2.clone(),
-        };
+        let settings = TransportSettings::new(
+            &params.damper,
+            node_name,
+            &params.ros2,
+            &params.zenoh,
+            &params.iceoryx2,
+        );
         let mut transports = Vec::new();
         for &k in &params.transports {
             transports.push(open(k, &settings, &[Topic::Sample], &[])?);

@@ -70,6 +70,25 @@ pub struct TransportSettings {
 }
 
 impl TransportSettings {
+    /// The settings of node `node_fqn` (`/ns/name`) for `damper`.
+    pub fn new(
+        damper: &str,
+        node_fqn: &str,
+        ros2: &bridge::ros2::Ros2Config,
+        zenoh: &bridge::zenoh::ZenohConfig,
+        iceoryx2: &bridge::iceoryx2::Iceoryx2Config,
+    ) -> Self {
+        let (namespace, name) = crate::runner::split_name(node_fqn);
+        Self {
+            damper: damper.to_string(),
+            node_name: name.to_string(),
+            namespace: namespace.to_string(),
+            ros2: ros2.clone(),
+            zenoh: zenoh.clone(),
+            iceoryx2: iceoryx2.clone(),
+        }
+    }
+
     /// The iceoryx2 settings with the damper's default service prefix filled in.
     pub fn iceoryx2_config(&self) -> bridge::iceoryx2::Iceoryx2Config {
         let mut c = self.iceoryx2.clone();
