@@ -109,14 +109,13 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         StandNode::new(stand.clone(), "/mrtwin_stand").context("start the stand node")?;
 
     // A monitor that counts the twin's outputs on every transport.
-    let settings = TransportSettings {
-        damper: damper.clone(),
-        node_name: "mrtwin_monitor".into(),
-        namespace: "/".into(),
-        ros2: stand.ros2.clone(),
-        zenoh: stand.zenoh.clone(),
-        iceoryx2: twin.iceoryx2.clone(),
-    };
+    let settings = TransportSettings::new(
+        &damper,
+        "/mrtwin_monitor",
+        &stand.ros2,
+        &stand.zenoh,
+        &twin.iceoryx2,
+    );
     let counts: Arc<[AtomicU64; 3]> = Arc::new(Default::default());
     let done = Arc::new(AtomicBool::new(false));
     let mut monitors = Vec::new();

@@ -17,9 +17,9 @@ use clap::Args;
 use launch_config::load_params;
 use msgs::{Clock, Float64, Time};
 use node::conditioning::SensorSample;
-use node::config::{model_selection, TwinNodeParams, TWIN_NODE};
+use node::config::{TwinNodeParams, TWIN_NODE};
 use node::diagnostics::{diagnostic_array, level_byte};
-use node::pipeline::{PipelineConfig, Processed, TwinPipeline};
+use node::pipeline::{Processed, TwinPipeline};
 use node::runner::{twin_output, yield_msg};
 use node::transports::{open, TransportSettings};
 
@@ -80,16 +80,7 @@ pub fn replay_params(args: &ReplayArgs) -> Result<TwinNodeParams> {
 
 /// The pipeline of a replay.
 pub fn replay_pipeline(p: &TwinNodeParams) -> Result<TwinPipeline> {
-    let (model, params, effects) = model_selection(&p.model, &p.effects, p.model_params())?;
-    Ok(TwinPipeline::new(PipelineConfig {
-        model,
-        params,
-        effects,
-        ambient_temperature_c: p.ambient_temperature_c,
-        conditioning: p.conditioning.clone(),
-        estimator: p.estimator.enabled.then(|| p.estimator.settings.clone()),
-        health: p.health.clone(),
-    })?)
+    Ok(TwinPipeline::new(p.pipeline_config()?)?)
 }
 
 enum Sink {
@@ -127,14 +118,13 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
     };
     let mut transports = Vec::new();
     if args.publish {
-        let settings = TransportSettings {
-            damper: params.damper.clone(),
-            node_name: "mrtwin_replay".into(),
-            namespace: "/".into(),
-            ros2: params.ros2.clone(),
-            zenoh: params.zenoh.clone(),
-            iceoryx2: params.iceoryx2.clone(),
-        };
+        let settings = TransportSettings::new(
+            &params.damper,
+            "/mrtwin_replay",
+            &params.ros2,
+            &params.zenoh,
+            &params.iceoryx2,
+        );
         let topics = [
             Topic::Output,
             Topic::PredictedForce,

@@ -58,13 +58,8 @@ fn run(kind: TransportKind, with_twin: bool, rate: f64, seconds: f64, case: u16)
     let mut client_params = params.clone();
     client_params.zenoh.listen.clear();
     client_params.zenoh.connect = vec![format!("tcp/127.0.0.1:{port}")];
-    let settings = |p: &TwinNodeParams, name: &str| TransportSettings {
-        damper: damper.clone(),
-        node_name: name.into(),
-        namespace: "/".into(),
-        ros2: p.ros2.clone(),
-        zenoh: p.zenoh.clone(),
-        iceoryx2: p.iceoryx2.clone(),
+    let settings = |p: &TwinNodeParams, name: &str| {
+        TransportSettings::new(&damper, name, &p.ros2, &p.zenoh, &p.iceoryx2)
     };
     let stop = Arc::new(AtomicBool::new(false));
     let (twin_thread, mut source, sink_topic, mut sink): (

@@ -171,6 +171,25 @@ impl TwinNodeParams {
         }
     }
 
+    /// The pipeline these parameters describe (model, effects, conditioning, estimator,
+    /// health): the same for the live node and for replay.
+    pub fn pipeline_config(&self) -> Result<crate::pipeline::PipelineConfig, InvalidParam> {
+        let (model, params, effects) =
+            model_selection(&self.model, &self.effects, self.model_params())?;
+        Ok(crate::pipeline::PipelineConfig {
+            model,
+            params,
+            effects,
+            ambient_temperature_c: self.ambient_temperature_c,
+            conditioning: self.conditioning.clone(),
+            estimator: self
+                .estimator
+                .enabled
+                .then(|| self.estimator.settings.clone()),
+            health: self.health.clone(),
+        })
+    }
+
     /// Check what serde cannot.
     pub fn validate(&self) -> Result<(), InvalidParam> {
         model_selection(&self.model, &self.effects, self.model_params())?;

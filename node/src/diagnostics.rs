@@ -25,13 +25,28 @@ pub struct StreamState {
 }
 
 impl StreamState {
+    /// Samples dropped since the previous report.
+    fn dropped(&self) -> u64 {
+        let (c, p) = (self.counters, self.previous);
+        (c.non_finite - p.non_finite)
+            + (c.duplicates - p.duplicates)
+            + (c.out_of_order - p.out_of_order)
+    }
+
+    /// The check's level alone (the node asks every loop turn; no strings built).
+    pub fn level(&self) -> Level {
+        match self.silence_s {
+            None => Level::Stale,
+            Some(s) if s > self.stale_after_s => Level::Stale,
+            Some(_) if self.transport_errors > 0 || self.dropped() > 0 => Level::Warn,
+            Some(_) => Level::Ok,
+        }
+    }
+
     /// The check.
     pub fn check(&self) -> Check {
         let c = self.counters;
-        let p = self.previous;
-        let dropped = (c.non_finite - p.non_finite)
-            + (c.duplicates - p.duplicates)
-            + (c.out_of_order - p.out_of_order);
+        let dropped = self.dropped();
         let (level, message) = match self.silence_s {
             None => (Level::Stale, "no sensor sample yet".to_string()),
             Some(s) if s > self.stale_after_s => {
@@ -128,12 +143,16 @@ mod tests {
             transport_errors: 0,
         };
         assert_eq!(s.check().level, Level::Stale);
+        assert_eq!(s.level(), s.check().level);
         s.silence_s = Some(0.1);
         assert_eq!(s.check().level, Level::Ok);
+        assert_eq!(s.level(), s.check().level);
         s.counters.duplicates = 3;
         assert_eq!(s.check().level, Level::Warn);
+        assert_eq!(s.level(), s.check().level);
         s.silence_s = Some(0.6);
         assert_eq!(s.check().level, Level::Stale);
+        assert_eq!(s.level(), s.check().level);
         let a = diagnostic_array("/ns/twin", "d1", 1.0, &[s.check()]);
         assert_eq!(a.status[0].name, "/ns/twin: sensor stream");
         assert_eq!(a.status[0].level, DiagnosticStatus::STALE);

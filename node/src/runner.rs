@@ -17,9 +17,9 @@ use msgs::shm::{ShmPrediction, ShmRequest};
 use msgs::{Float64, Header, TwinOutput};
 
 use crate::conditioning::{SensorSample, StreamCounters};
-use crate::config::{model_selection, InvalidParam, TwinNodeParams};
+use crate::config::{InvalidParam, TwinNodeParams};
 use crate::diagnostics::{diagnostic_array, level_byte, worst, StreamState};
-use crate::pipeline::{PipelineConfig, Processed, TwinPipeline, TwinStep};
+use crate::pipeline::{Processed, TwinPipeline, TwinStep};
 use crate::transports::{open, TransportKind, TransportSettings};
 
 /// Why the node could not start.
@@ -87,20 +87,7 @@ impl TwinNode {
     /// (`/ns/name`); the namespace is its parent.
     pub fn new(params: TwinNodeParams, node_name: &str) -> Result<Self, NodeError> {
         params.validate()?;
-        let (model, model_params, effects) =
-            model_selection(&params.model, &params.effects, params.model_params())?;
-        let pipeline = TwinPipeline::new(PipelineConfig {
-            model,
-            params: model_params,
-            effects,
-            ambient_temperature_c: params.ambient_temperature_c,
-            conditioning: params.conditioning.clone(),
-            estimator: params
-                .estimator
-                .enabled
-                .then(|| params.estimator.settings.clone()),
-            health: params.health.clone(),
-        })?;
+        let pipeline = TwinPipeline::new(params.pipeline_config()?)?;
         let settings = TransportSettings::new(
             &params.damper,
             node_name,
@@ -257,7 +244,7 @@ impl TwinNode {
                     / now.duration_since(last_diag_at).as_secs_f64().max(1e-3),
                 transport_errors: transport_errors - transport_errors_reported,
             };
-            let stream_level = stream.check().level;
+            let stream_level = stream.level();
             let level = worst([stream_level, self.pipeline.health_level()]);
             let level_changed = level != last_level
                 && now.duration_since(last_diag_at) >= Duration::from_millis(100);
@@ -310,7 +297,7 @@ impl TwinNode {
             }
         }
         let now = Instant::now();
-        let level = worst([self.pipeline.health_level()]);
+        let level = self.pipeline.health_level();
         self.live(
             start,
             now,
