@@ -11,7 +11,7 @@ use std::time::Duration;
 
 use bridge::iceoryx2::controller::{run_controller, ControllerOptions};
 use bridge::iceoryx2::Iceoryx2Config;
-use mrtwin_tests::{free_port, run_python, ChildGuard, TempDir};
+use mrtwin_tests::{free_port, run_python, run_python_env, ChildGuard, TempDir};
 
 /// The live tests start several processes each and check timing (staleness within 2 s,
 /// 1 kHz without loss): on a 2-core machine they run one at a time.
@@ -334,6 +334,7 @@ fn rclpy_feeds_the_twin_and_reads_its_force_diagnostics_and_graph() {
             ("ROS_DOMAIN_ID", &domain.to_string()),
             ("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp"),
         ],
+        Duration::from_secs(60),
     );
     node.interrupt();
     let (ok, node_out, err) = node.wait(Duration::from_secs(20));
@@ -418,17 +419,6 @@ fn rclpy_feeds_the_twin_and_reads_its_force_diagnostics_and_graph() {
             .any(|n| n[0] == "mrtwin_twin" && n[1] == "/rig"),
         "nodes: {nodes:?}"
     );
-}
-
-fn run_python_env(script: &str, args: &[&str], env: &[(&str, &str)]) -> String {
-    let mut cmd = Command::new(mrtwin_tests::python());
-    cmd.arg("-c").arg(script).args(args);
-    for (k, v) in env {
-        cmd.env(k, v);
-    }
-    let (ok, out, err) = ChildGuard::spawn(&mut cmd).wait(Duration::from_secs(60));
-    assert!(ok, "rclpy peer failed:\n{err}\n{out}");
-    out
 }
 
 #[test]

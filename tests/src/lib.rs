@@ -35,12 +35,23 @@ pub fn python() -> PathBuf {
 /// failure or timeout. Output is drained while the script runs, so a chatty script never
 /// blocks on a full pipe.
 pub fn run_python(script: &str, args: &[&str], timeout: std::time::Duration) -> String {
+    run_python_env(script, args, &[], timeout)
+}
+
+/// [`run_python`] with extra environment variables (e.g. `ROS_DOMAIN_ID`).
+pub fn run_python_env(
+    script: &str,
+    args: &[&str],
+    env: &[(&str, &str)],
+    timeout: std::time::Duration,
+) -> String {
     use std::io::Read;
     use std::process::{Command, Stdio};
     let mut child = Command::new(python())
         .arg("-c")
         .arg(script)
         .args(args)
+        .envs(env.iter().copied())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
