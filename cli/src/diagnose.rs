@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use ::diagnose::data::Prepared;
 use ::diagnose::report::render_markdown;
-use ::diagnose::{Diagnosis, Signals, Thresholds};
+use ::diagnose::{Diagnosis, Options, Progress, Selector, Signals};
 use anyhow::{bail, Context, Result};
 use bridge::recording::Recording;
 use clap::Args;
@@ -36,6 +36,50 @@ pub struct DiagnoseArgs {
     /// Write the Markdown report here (it is printed to stdout otherwise).
     #[arg(long, value_name = "OUT.md")]
     pub report: Option<PathBuf>,
+    /// How candidate effects are accepted: `calibrated` (against a bootstrap null of the
+    /// fitted model at a 1 % family-wise false-alarm rate), `rules` (the four hand-set
+    /// rules of the first version) or `sindy` (SINDy-style sparse regression, for
+    /// comparison).
+    #[arg(long, value_name = "NAME", default_value = "calibrated", value_parser = parse_selector)]
+    pub selector: Selector,
+    /// Bootstrap replicates per selection round (`calibrated`).
+    #[arg(long, value_name = "N", default_value_t = ::diagnose::Calibration::default().replicates)]
+    pub replicates: usize,
+    /// Family-wise false-alarm rate per record (`calibrated`).
+    #[arg(long, value_name = "ALPHA", default_value_t = ::diagnose::Calibration::default().family_alpha)]
+    pub family_alpha: f64,
+}
+
+fn parse_selector(s: &str) -> Result<Selector, String> {
+    Selector::parse(s).ok_or_else(|| {
+        format!("unknown selector '{s}' (expected one of: calibrated, rules, sindy)")
+    })
+}
+
+/// A one-line progress bar on stderr, drawn only when stderr is a terminal.
+fn progress_bar(p: Progress) {
+    use std::io::{IsTerminal, Write};
+    let mut err = std::io::stderr();
+    if !err.is_terminal() {
+        return;
+    }
+    let width = 30usize;
+    let filled = if p.total == 0 {
+        width
+    } else {
+        (width * p.done / p.total).min(width)
+    };
+    let _ = write!(
+        err,
+        "\r\x1b[2K  round {} {:<20} [{}{}] {}/{}",
+        p.round,
+        p.stage,
+        "#".repeat(filled),
+        ".".repeat(width - filled),
+        p.done,
+        p.total
+    );
+    let _ = err.flush();
 }
 
 /// Read the recording to diagnose.
@@ -53,6 +97,7 @@ fn signals(rec: &Recording) -> Signals {
         velocity_m_s: s.iter().map(|x| x.velocity_m_s).collect(),
         force_n: s.iter().map(|x| x.force_n).collect(),
         current_a: s.iter().map(|x| x.current_a).collect(),
+        velocity_derived: rec.velocity_derived,
     }
 }
 
@@ -67,8 +112,30 @@ pub fn run(args: &DiagnoseArgs) -> Result<()> {
     }
     let rec = load_input(&args.input)?;
     let name = args.input.display().to_string();
-    let dg = ::diagnose::diagnose(&signals(&rec), &name, &Thresholds::default())
+    if !(args.family_alpha > 0.0 && args.family_alpha < 1.0) {
+        bail!("--family-alpha {} is not a rate in (0, 1)", args.family_alpha);
+    }
+    if args.replicates < 8 {
+        bail!("--replicates {}: the calibration needs at least 8", args.replicates);
+    }
+    let opts = Options {
+        selector: args.selector,
+        calibration: ::diagnose::Calibration {
+            replicates: args.replicates,
+            family_alpha: args.family_alpha,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let sync_bar = |p: Progress| progress_bar(p);
+    let dg = ::diagnose::diagnose_with_progress(&signals(&rec), &name, &opts, &sync_bar)
         .with_context(|| format!("cannot diagnose {name}"))?;
+    {
+        use std::io::IsTerminal;
+        if std::io::stderr().is_terminal() {
+            eprint!("\r\x1b[2K");
+        }
+    }
     let md = render_markdown(&dg.report);
     if let Some(path) = &args.json {
         let text = serde_json::to_string_pretty(&dg.report).context("cannot encode JSON")?;

@@ -72,6 +72,87 @@ pub fn flow_velocity(f: f64, fy: f64, c: f64) -> (f64, f64, f64, f64) {
     (w, dg / c, s * (g - p * dg) / c, -w / c)
 }
 
+/// The Bingham slit law with a pre-yield leak, in force units: the flow velocity a force
+/// drives is `w(F) = sgn F · (F_y/c · G(Φ) [Φ > 1] + v_ε Φ)`, `Φ = |F|/F_y`, G the slit
+/// function of [`phi`]. This is the expected force of the Bingham damper when the velocity
+/// it is evaluated at carries a random error (crate::measure): the jump at v = 0 becomes a
+/// ramp of slope F_y/v_ε, and the law stays C¹ (G'(1) = 0). v_ε = 0 gives [`force`].
+///
+/// Φ for speed `u = c|v|/F_y ≥ e`, `e = c v_ε/F_y`: the root ≥ 1 of
+/// `(1 + e) Φ³ − (3/2 + u) Φ² + ½ = 0`; returns (Φ, ∂Φ/∂u, ∂Φ/∂e).
+pub fn phi_leaky(u: f64, e: f64) -> (f64, f64, f64) {
+    if e <= 0.0 {
+        let (p, dp) = phi(u);
+        return (p, dp, if dp.is_finite() { -p * dp } else { 0.0 });
+    }
+    let g = |x: f64| (1.0 + e) * x - 1.5 + 0.5 / (x * x) - u;
+    let dg = |x: f64| 1.0 + e - 1.0 / (x * x * x);
+    let (mut lo, mut hi) = (1.0, 1.5 + u);
+    let mut x = (1.0 + (u - e).max(0.0) / (1.0 + e)).clamp(lo, hi);
+    for _ in 0..80 {
+        let r = g(x);
+        if r > 0.0 {
+            hi = x;
+        } else {
+            lo = x;
+        }
+        let d = dg(x);
+        let newton = x - r / d;
+        let next = if d > 0.0 && newton > lo && newton < hi {
+            newton
+        } else {
+            0.5 * (lo + hi)
+        };
+        if (next - x).abs() <= 1e-14 * x {
+            x = next;
+            break;
+        }
+        x = next;
+    }
+    let d = dg(x);
+    (x, 1.0 / d, -x / d)
+}
+
+/// Rod force of the leaky Bingham law and its derivatives: `(F, ∂F/∂F_y, ∂F/∂c, ∂F/∂v_ε)`.
+pub fn force_leaky(v: f64, fy: f64, c: f64, veps: f64) -> (f64, f64, f64, f64) {
+    if veps <= 0.0 {
+        let (f, a, b) = force(v, fy, c);
+        return (f, a, b, 0.0);
+    }
+    let av = v.abs();
+    if av <= veps {
+        return (fy * v / veps, v / veps, 0.0, -fy * v / (veps * veps));
+    }
+    let s = v.signum();
+    let u = c * av / fy;
+    let e = c * veps / fy;
+    let (p, du, de) = phi_leaky(u, e);
+    (
+        s * fy * p,
+        s * (p - u * du - e * de),
+        s * (du * av + de * veps),
+        s * c * de,
+    )
+}
+
+/// Inverse of [`force_leaky`]: `(w, ∂w/∂F, ∂w/∂F_y, ∂w/∂c, ∂w/∂v_ε)`.
+pub fn flow_velocity_leaky(f: f64, fy: f64, c: f64, veps: f64) -> (f64, f64, f64, f64, f64) {
+    let p = f.abs() / fy;
+    let s = if f < 0.0 { -1.0 } else { 1.0 };
+    let leak = (s * veps * p, veps / fy, -s * veps * p / fy, 0.0, s * p);
+    if p <= 1.0 {
+        return leak;
+    }
+    let (w, dwf, dwfy, dwc) = flow_velocity(f, fy, c);
+    (
+        w + leak.0,
+        dwf + leak.1,
+        dwfy + leak.2,
+        dwc,
+        leak.4,
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -122,5 +203,32 @@ mod tests {
             let (f, _, _) = force(v, fy, c);
             assert!((f / twin_f - 1.0).abs() < 1e-8, "{v}: {f} vs {twin_f}");
         }
+    }
+
+    #[test]
+    fn leaky_law_inverts_its_force_and_matches_finite_differences() {
+        let (fy, c, veps) = (800.0, 1500.0, 0.004);
+        for v in [-0.3, -0.01, -0.003, 1e-4, 0.0039, 0.0041, 0.05, 0.4] {
+            let (f, dfy, dc, de) = force_leaky(v, fy, c, veps);
+            let (w, dwf, _, _, _) = flow_velocity_leaky(f, fy, c, veps);
+            assert!((w - v).abs() < 1e-9 * v.abs().max(1e-3), "{v}: w {w}");
+            let fd = |g: &dyn Fn(f64) -> f64, x: f64| {
+                let h = 1e-6 * x;
+                (g(x + h) - g(x - h)) / (2.0 * h)
+            };
+            let nfy = fd(&|x| force_leaky(v, x, c, veps).0, fy);
+            let nc = fd(&|x| force_leaky(v, fy, x, veps).0, c);
+            let ne = fd(&|x| force_leaky(v, fy, c, x).0, veps);
+            for (a, b) in [(dfy, nfy), (dc, nc), (de, ne)] {
+                assert!((a - b).abs() <= 1e-5 * (a.abs() + b.abs()).max(1e-6), "{v}: {a} vs {b}");
+            }
+            // ∂w/∂F is the reciprocal of ∂F/∂v.
+            let dfdv = fd(&|x| force_leaky(x, fy, c, veps).0, v);
+            assert!((dwf * dfdv - 1.0).abs() < 1e-4, "{v}: {dwf} · {dfdv}");
+        }
+        // v_ε → 0 gives the plain slit law.
+        let (a, _, _, _) = force_leaky(0.02, fy, c, 1e-12);
+        let (b, _, _) = force(0.02, fy, c);
+        assert!((a - b).abs() < 1e-6);
     }
 }

@@ -16,6 +16,9 @@ pub struct Signals {
     pub force_n: Vec<f64>,
     /// Coil current \[A\].
     pub current_a: Vec<f64>,
+    /// `true` when the velocity column was computed from the displacement by the reader
+    /// (then only the displacement carries information about the velocity).
+    pub velocity_derived: bool,
 }
 
 /// Why a recording cannot be diagnosed.
@@ -66,9 +69,18 @@ pub struct Prepared {
     pub t: Vec<f64>,
     /// Displacement \[m\].
     pub x: Vec<f64>,
-    /// Velocity \[m/s\].
+    /// Velocity v \[m/s\], rebuilt from the displacement and velocity channels
+    /// ([`crate::measure`]).
     pub v: Vec<f64>,
-    /// Acceleration \[m/s²\], central difference of v over about ±2 ms.
+    /// The velocity channel as recorded \[m/s\].
+    pub v_meas: Vec<f64>,
+    /// Standard deviation of the rebuilt velocity's error \[m/s\].
+    pub v_sigma: Vec<f64>,
+    /// Weight of each sample in every fit and every error figure: σ_F² / (σ_F² + the
+    /// force variance the velocity error causes), set from the baseline
+    /// ([`crate::model::predictive_weights`]); 1 until then.
+    pub weight: Vec<f64>,
+    /// Acceleration \[m/s²\], local-cubic derivative of the rebuilt velocity.
     pub a: Vec<f64>,
     /// Current \[A\].
     pub i: Vec<f64>,
@@ -92,10 +104,23 @@ pub struct Prepared {
     pub phase: Vec<Phase>,
     /// Peak speed of each sample's stroke \[m/s\].
     pub stroke_speed: Vec<f64>,
-    /// `true` for held-out samples.
+    /// `true` for held-out samples (never for excluded ones).
     pub holdout: Vec<bool>,
-    /// Velocity scale of the friction smoothing \[m/s\] (1 % of the peak speed).
+    /// `true` for fitting samples (never for excluded ones).
+    pub train: Vec<bool>,
+    /// `true` for samples left out of fitting and validation (a channel stuck).
+    pub excluded: Vec<bool>,
+    /// Validation block of each sample (contiguous in time; odd blocks are held out).
+    pub block: Vec<usize>,
+    /// Number of validation blocks.
+    pub blocks: usize,
+    /// Velocity scale of the friction smoothing \[m/s\] (1 % of the peak speed, at least
+    /// the leak velocity of the measurement model).
     pub friction_velocity: f64,
+    /// Smallest leak velocity of the fluid law: √(π/2) σ_v̂ \[m/s\] (crate::measure).
+    pub leak_velocity_min: f64,
+    /// What the measurement model found.
+    pub measurement: crate::measure::MeasurementSummary,
     /// How the data were split.
     pub split_method: String,
 }
@@ -111,10 +136,8 @@ impl Prepared {
     }
 }
 
-/// Check and prepare the signals.
-// Several per-sample arrays are read and written with one index: range loops are clearer.
-#[allow(clippy::needless_range_loop)]
-pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
+/// Check the signals: equal lengths, enough samples, finite values, increasing time.
+fn validate(s: &Signals) -> Result<(), DataError> {
     let n = s.time_s.len();
     for (name, len) in [
         ("displacement_m", s.displacement_m.len()),
@@ -148,45 +171,28 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
             return Err(DataError(format!("time does not increase at sample {k}")));
         }
     }
-    let t = s.time_s.clone();
-    let x = s.displacement_m.clone();
-    let v = s.velocity_m_s.clone();
-    let f = s.force_n.clone();
-    let i = s.current_a.clone();
+    Ok(())
+}
+
+/// Step to the previous sample (0 at the start and after a gap of more than 5 median steps).
+fn steps(t: &[f64]) -> Vec<f64> {
     let mut dts: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
     dts.sort_by(f64::total_cmp);
     let dt = dts[dts.len() / 2];
-    let mut h = vec![0.0; n];
-    for k in 1..n {
+    let mut h = vec![0.0; t.len()];
+    for k in 1..t.len() {
         let d = t[k] - t[k - 1];
         h[k] = if d > 5.0 * dt { 0.0 } else { d };
     }
-    let vpeak = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    if vpeak <= 0.0 {
-        return Err(DataError(
-            "the piston does not move (velocity is zero throughout)".into(),
-        ));
-    }
-    // Acceleration: central difference over ±k samples (about ±2 ms), within runs.
-    let kk = ((0.002 / dt).round() as usize).max(1);
-    let mut a = vec![0.0; n];
-    for j in 0..n {
-        let lo = j.saturating_sub(kk);
-        let hi = (j + kk).min(n - 1);
-        if hi > lo {
-            a[j] = (v[hi] - v[lo]) / (t[hi] - t[lo]);
-        }
-    }
-    let mut energy_kj = vec![0.0; n];
-    for k in 1..n {
-        let p = 0.5 * (f[k] * v[k] + f[k - 1] * v[k - 1]);
-        energy_kj[k] = energy_kj[k - 1] + h[k] * p.max(0.0) * 1e-3;
-    }
-    // Current knots.
-    let imax = i.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    let tol = (0.02 * imax).max(1e-3);
+    h
+}
+
+/// Current knots: the distinct levels (closer than 2 % of the largest current merged),
+/// or 8 knots evenly spread when there are more than 12 levels.
+fn current_knots(i: &[f64]) -> Vec<f64> {
+    let tol = level_tolerance(i);
     let mut levels: Vec<f64> = Vec::new();
-    for &c in &i {
+    for &c in i {
         if !levels.iter().any(|l| (l - c).abs() <= tol) {
             levels.push(c);
             if levels.len() > 12 {
@@ -194,7 +200,7 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
             }
         }
     }
-    let knots = if levels.len() <= 12 {
+    if levels.len() <= 12 {
         // Snap each level to the mean of the samples near it.
         let mut k: Vec<f64> = levels
             .iter()
@@ -209,14 +215,22 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
         let lo = i.iter().copied().fold(f64::INFINITY, f64::min);
         let hi = i.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         (0..8).map(|j| lo + (hi - lo) * j as f64 / 7.0).collect()
-    };
-    // Strokes: a new cycle where v turns from negative to positive (hysteresis 5 % of peak).
+    }
+}
+
+/// Two currents closer than this are one level: 2 % of the largest |I|, at least 1 mA.
+pub fn level_tolerance(i: &[f64]) -> f64 {
+    let imax = i.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    (0.02 * imax).max(1e-3)
+}
+
+/// Strokes: a new cycle where v turns from below −5 % to above +5 % of the peak speed
+/// (and at every time gap). Returns the cycle of each sample and the number of cycles.
+fn strokes(v: &[f64], h: &[f64], vpeak: f64) -> (Vec<usize>, usize) {
     let thr = 0.05 * vpeak;
-    let mut cycle = vec![0usize; n];
-    let mut c = 0usize;
-    let mut state = 0i8;
-    let mut start = 0usize;
-    for k in 0..n {
+    let mut cycle = vec![0usize; v.len()];
+    let (mut c, mut state, mut start) = (0usize, 0i8, 0usize);
+    for k in 0..v.len() {
         if h[k] == 0.0 && k > 0 {
             c += 1;
             start = k;
@@ -233,27 +247,14 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
         }
         cycle[k] = c;
     }
-    let cycles = c + 1;
-    let mut stroke_speed = vec![0.0f64; cycles];
-    for k in 0..n {
-        stroke_speed[cycle[k]] = stroke_speed[cycle[k]].max(v[k].abs());
-    }
-    let stroke_speed: Vec<f64> = cycle.iter().map(|&c| stroke_speed[c]).collect();
-    let phase = (0..n)
-        .map(|k| {
-            if v[k].abs() < 0.25 * stroke_speed[k] {
-                Phase::NearReversal
-            } else if v[k] * a[k] > 0.0 {
-                Phase::Accelerating
-            } else {
-                Phase::Decelerating
-            }
-        })
-        .collect();
-    // Segments: a new one at a current step or where the stroke period changes by > 20 %.
-    let mut segment = vec![0usize; n];
-    let mut seg = 0usize;
-    let mut period_prev: Option<f64> = None;
+    (cycle, c + 1)
+}
+
+/// Segments: a new one at a current step, a time gap, or where the stroke period changes
+/// by more than 20 %.
+fn segments(t: &[f64], i: &[f64], h: &[f64], cycle: &[usize], cycles: usize) -> (Vec<usize>, usize) {
+    let n = t.len();
+    let tol = level_tolerance(i);
     let mut cycle_start = vec![0usize; cycles];
     let mut cycle_end = vec![0usize; cycles];
     for k in (0..n).rev() {
@@ -262,6 +263,9 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
     for k in 0..n {
         cycle_end[cycle[k]] = k;
     }
+    let mut segment = vec![0usize; n];
+    let mut seg = 0usize;
+    let mut period_prev: Option<f64> = None;
     for k in 0..n {
         let mut new = k > 0 && (h[k] == 0.0 || (i[k] - i[k - 1]).abs() > tol);
         if k > 0 && cycle[k] != cycle[k - 1] {
@@ -282,30 +286,144 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
         }
         segment[k] = seg;
     }
-    let segments = seg + 1;
-    // Split: alternate strokes; short records (< 6 strokes) alternate 0.25 s blocks.
-    let (holdout, split_method) = if cycles >= 6 {
-        (
-            cycle.iter().map(|c| c % 2 == 1).collect(),
-            "alternate strokes: strokes are counted from one negative-to-positive velocity \
-             crossing to the next; even strokes fit, odd strokes are held out, so both parts \
-             cover every segment, current and time of the recording"
-                .to_string(),
-        )
-    } else {
-        (
-            t.iter()
-                .map(|tt| (((tt - t[0]) / 0.25) as usize) % 2 == 1)
-                .collect(),
-            "alternate 0.25 s blocks (fewer than 6 strokes): even blocks fit, odd blocks are held out"
-                .to_string(),
-        )
+    (segment, seg + 1)
+}
+
+/// Most validation blocks in a record.
+const MAX_BLOCKS: usize = 16;
+
+/// Validation blocks: contiguous stretches of time, each about three typical stroke
+/// periods long (shorter only to have four blocks), alternately fitted and held out. Alternate strokes of a periodic record
+/// are near-copies of each other, so holding out every other stroke says little about
+/// new data; a held-out block is a stretch the fit has not seen.
+///
+/// When the record is a few long segments (≤ 8, each ≥ 2 stroke periods: e.g. one
+/// current and frequency per segment), every segment is cut into an even number of
+/// blocks, so each segment's current and frequency is both fitted and held out. Otherwise
+/// (stepped or random currents, random strokes) the whole record is cut into an even
+/// number of equal blocks. Returns the block of each sample, the number of blocks and a
+/// description.
+fn validation_blocks(
+    t: &[f64],
+    segment: &[usize],
+    segments: usize,
+    period: f64,
+) -> (Vec<usize>, usize, String) {
+    let n = t.len();
+    let mut seg_range = vec![(usize::MAX, 0usize); segments];
+    for (j, &s) in segment.iter().enumerate() {
+        seg_range[s].0 = seg_range[s].0.min(j);
+        seg_range[s].1 = j + 1;
+    }
+    let dur = |a: usize, b: usize| t[b - 1] - t[a];
+    // Three stroke periods, but at least four blocks in a short record.
+    let target = (3.0 * period).min(dur(0, n) / 4.0);
+    let even_count = |d: f64, most: usize| -> usize {
+        let k = ((d / target).floor() as usize).clamp(2, most.max(2));
+        k - k % 2
     };
-    let friction_velocity = 0.01 * vpeak;
+    let per_segment =
+        segments <= 8 && seg_range.iter().all(|&(a, b)| dur(a, b) >= 2.0 * period);
+    let mut block = vec![0usize; n];
+    let mut next = 0usize;
+    let method;
+    if per_segment {
+        let most = (MAX_BLOCKS / segments).max(2);
+        for &(a, b) in &seg_range {
+            let k = even_count(dur(a, b), most);
+            let (t0, len) = (t[a], dur(a, b).max(1e-12));
+            for j in a..b {
+                block[j] = next + (((t[j] - t0) / len * k as f64) as usize).min(k - 1);
+            }
+            next += k;
+        }
+        method = format!(
+            "contiguous blocks within each of the {segments} segments (each cut into an even \
+             number of blocks of at least three stroke periods); even blocks fit, odd blocks \
+             held out, so every segment's current and frequency is in both parts"
+        );
+    } else {
+        let k = even_count(dur(0, n), MAX_BLOCKS);
+        let (t0, len) = (t[0], dur(0, n).max(1e-12));
+        for j in 0..n {
+            block[j] = (((t[j] - t0) / len * k as f64) as usize).min(k - 1);
+        }
+        next = k;
+        method = format!(
+            "{k} contiguous blocks of equal time (at least three stroke periods each); even \
+             blocks fit, odd blocks held out"
+        );
+    }
+    (block, next, method)
+}
+
+/// Check and prepare the signals: validate, apply the measurement model, find strokes,
+/// segments, phases and current knots, and split into validation blocks.
+// Several per-sample arrays are read and written with one index: range loops are clearer.
+#[allow(clippy::needless_range_loop)]
+pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
+    validate(s)?;
+    let n = s.time_s.len();
+    let t = s.time_s.clone();
+    let x = s.displacement_m.clone();
+    let f = s.force_n.clone();
+    let i = s.current_a.clone();
+    let h = steps(&t);
+    let m = crate::measure::measure(&t, &x, &s.velocity_m_s, &f, &h, s.velocity_derived);
+    let v = m.v;
+    let a = m.a;
+    let vpeak = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    if vpeak <= 0.0 {
+        return Err(DataError(
+            "the piston does not move (velocity is zero throughout)".into(),
+        ));
+    }
+    let mut energy_kj = vec![0.0; n];
+    for k in 1..n {
+        let p = 0.5 * (f[k] * v[k] + f[k - 1] * v[k - 1]);
+        energy_kj[k] = energy_kj[k - 1] + h[k] * p.max(0.0) * 1e-3;
+    }
+    let knots = current_knots(&i);
+    let (cycle, cycles) = strokes(&v, &h, vpeak);
+    let mut stroke_peak = vec![0.0f64; cycles];
+    for k in 0..n {
+        stroke_peak[cycle[k]] = stroke_peak[cycle[k]].max(v[k].abs());
+    }
+    let stroke_speed: Vec<f64> = cycle.iter().map(|&c| stroke_peak[c]).collect();
+    let phase = (0..n)
+        .map(|k| {
+            if v[k].abs() < 0.25 * stroke_speed[k] {
+                Phase::NearReversal
+            } else if v[k] * a[k] > 0.0 {
+                Phase::Accelerating
+            } else {
+                Phase::Decelerating
+            }
+        })
+        .collect();
+    let (segment, segments) = segments(&t, &i, &h, &cycle, cycles);
+    let (block, blocks, split_method) =
+        validation_blocks(&t, &segment, segments, m.summary.stroke_period_s);
+    let excluded = m.excluded;
+    if excluded.iter().filter(|e| !**e).count() < 200 {
+        return Err(DataError(
+            "fewer than 200 samples are left once the stuck (flat-lined) stretches are \
+             taken out"
+                .into(),
+        ));
+    }
+    let holdout: Vec<bool> = (0..n).map(|j| block[j] % 2 == 1 && !excluded[j]).collect();
+    let train: Vec<bool> = (0..n).map(|j| block[j] % 2 == 0 && !excluded[j]).collect();
+    let leak_velocity_min =
+        crate::measure::LEAK_PER_SIGMA * m.summary.rebuilt_velocity_sigma_m_s;
+    let friction_velocity = (0.01 * vpeak).max(leak_velocity_min);
     Ok(Prepared {
         t,
         x,
         v,
+        v_meas: s.velocity_m_s.clone(),
+        v_sigma: m.v_sigma,
+        weight: vec![1.0; n],
         a,
         i,
         f,
@@ -319,7 +437,13 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
         phase,
         stroke_speed,
         holdout,
+        train,
+        excluded,
+        block,
+        blocks,
         friction_velocity,
+        leak_velocity_min,
+        measurement: m.summary,
         split_method,
     })
 }

@@ -10,14 +10,18 @@
 //! Pure computation: no I/O. docs/diagnose.md describes every rule and threshold.
 
 pub mod bingham;
+pub mod calibrate;
 pub mod data;
+pub mod measure;
 pub mod model;
 pub mod report;
 pub mod select;
 pub mod sindy;
 pub mod stats;
 pub mod study;
+pub mod unexplained;
 
 pub use data::{DataError, Signals};
 pub use report::Report;
-pub use select::{diagnose, Diagnosis, Thresholds};
+pub use calibrate::Calibration;
+pub use select::{diagnose, diagnose_with_progress, Diagnosis, Options, Progress, Selector, Thresholds};

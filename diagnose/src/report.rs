@@ -65,6 +65,9 @@ pub struct Evidence {
     pub structure_drop: f64,
     /// That region.
     pub structure_region: String,
+    /// The calibrated evidence (the `calibrated` selector).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub calibration: Option<crate::calibrate::Calibrated>,
 }
 
 /// An accepted effect.
@@ -78,6 +81,45 @@ pub struct Finding {
     pub parameters: BTreeMap<String, Parameter>,
     /// Why it was accepted.
     pub evidence: Evidence,
+    /// Held-out RMS per held-out validation block, before and after the effect.
+    pub block_gains: Vec<BlockGain>,
+}
+
+/// The held-out error of one held-out validation block, before and after.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct BlockGain {
+    /// Start of the block \[s\].
+    pub start_s: f64,
+    /// End of the block \[s\].
+    pub end_s: f64,
+    /// Held-out samples in it.
+    pub samples: usize,
+    /// RMS before \[N\].
+    #[serde(rename = "rmse_before_N")]
+    pub rmse_before_n: f64,
+    /// RMS after \[N\].
+    #[serde(rename = "rmse_after_N")]
+    pub rmse_after_n: f64,
+}
+
+/// Structure the final model leaves in the residual beyond noise.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Unexplained {
+    /// What the residual was grouped by.
+    pub grouping: String,
+    /// Where the structure concentrates (the groups with the largest mean residual).
+    pub concentrates_in: Vec<String>,
+    /// RMS of the systematic part (group means) \[N\].
+    #[serde(rename = "systematic_rms_N")]
+    pub systematic_rms_n: f64,
+    /// Its share of the residual's mean square.
+    pub share_of_residual: f64,
+    /// Test statistic: χ² of the group means with the effective sample size.
+    pub chi2: f64,
+    /// Its 99 % critical value.
+    pub chi2_crit99: f64,
+    /// Signals the residual correlates with beyond the autocorrelated band.
+    pub correlates_with: Vec<String>,
 }
 
 /// Explanations the data cannot tell apart.
@@ -169,6 +211,8 @@ pub struct Split {
     pub strokes: usize,
     /// Segments.
     pub segments: usize,
+    /// Validation blocks (contiguous in time; odd ones held out).
+    pub blocks: usize,
     /// Current knots \[A\].
     pub current_knots_a: Vec<f64>,
 }
@@ -180,10 +224,16 @@ pub struct Report {
     pub input: String,
     /// Number of samples.
     pub samples: usize,
+    /// How candidates were accepted (`calibrated`, `rules`, `sindy`).
+    pub selector: String,
+    /// What the measurement model found: noise levels, rebuilt velocity, stuck stretches.
+    pub measurement: crate::measure::MeasurementSummary,
     /// The split.
     pub split: Split,
     /// The baseline.
     pub baseline: ModelSummary,
+    /// The baseline's measurement parameters (force offset, leak velocity).
+    pub baseline_parameters: BTreeMap<String, f64>,
     /// Where the baseline residual concentrates.
     pub mismatch: Vec<Mismatch>,
     /// Baseline residual statistics.
@@ -192,13 +242,19 @@ pub struct Report {
     pub findings: Vec<Finding>,
     /// Explanations the data cannot tell apart.
     pub undecided: Vec<Undecided>,
+    /// Structure the final model leaves beyond noise (empty when the residual is noise).
+    pub unexplained: Vec<Unexplained>,
     /// Every candidate tried.
     pub trials: Vec<Trial>,
     /// The final model.
     #[serde(rename = "final")]
     pub final_model: ModelSummary,
+    /// The final model's measurement parameters.
+    pub final_parameters: BTreeMap<String, f64>,
     /// Final residual statistics.
     pub final_residual: ResidualStats,
+    /// Held-out RMS per held-out block, baseline → final.
+    pub holdout_blocks: Vec<BlockGain>,
     /// RMS residual by stroke phase, before and after.
     pub residual_by_phase: Vec<PhaseResidual>,
     /// The acceptance thresholds used.
@@ -235,11 +291,20 @@ pub fn render_markdown(r: &Report) -> String {
     );
     let _ = writeln!(s, "## Verdict\n");
     if r.findings.is_empty() && r.undecided.is_empty() {
-        let _ = writeln!(
-            s,
-            "Nothing is missing: no candidate effect passed every acceptance rule. \
-             The baseline stands.\n"
-        );
+        if r.unexplained.is_empty() {
+            let _ = writeln!(
+                s,
+                "No candidate effect is supported, and the final residual shows no structure \
+                 beyond noise: nothing in the library is missing.\n"
+            );
+        } else {
+            let _ = writeln!(
+                s,
+                "No candidate effect in the library is supported, **but the residual is \
+                 still structured beyond noise** (see *Unexplained*): something the library \
+                 does not hold is missing.\n"
+            );
+        }
     }
     for f in &r.findings {
         let e = &f.evidence;
@@ -264,6 +329,57 @@ pub fn render_markdown(r: &Report) -> String {
     for u in &r.undecided {
         let _ = writeln!(s, "- **undecided: {}** — {}", u.effects.join(" or "), u.why);
     }
+    if !r.unexplained.is_empty() {
+        let _ = writeln!(s, "\n## Unexplained\n");
+        let _ = writeln!(
+            s,
+            "| grouping | concentrates in | systematic RMS (N) | share of residual | χ² (99 % crit.) | correlates with |"
+        );
+        let _ = writeln!(s, "| --- | --- | --- | --- | --- | --- |");
+        for u in &r.unexplained {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {:.2} | {:.1} % | {:.0} ({:.0}) | {} |",
+                u.grouping,
+                u.concentrates_in.join("; "),
+                u.systematic_rms_n,
+                100.0 * u.share_of_residual,
+                u.chi2,
+                u.chi2_crit99,
+                u.correlates_with.join(", ")
+            );
+        }
+    }
+    let m = &r.measurement;
+    let _ = writeln!(
+        s,
+        "\n**Measurement.** Noise: displacement {:.2} µm, velocity {}, force (high-frequency) \
+         {:.2} N; rebuilt velocity σ {:.3} mm/s (window ±{} samples, stroke period {:.3} s).{}\n",
+        1e6 * m.displacement_noise_m,
+        m.velocity_noise_m_s
+            .map(|v| format!("{:.3} mm/s", 1e3 * v))
+            .unwrap_or_else(|| "derived from displacement".into()),
+        m.force_noise_hf_n,
+        1e3 * m.rebuilt_velocity_sigma_m_s,
+        m.window_half_samples,
+        m.stroke_period_s,
+        if m.flat_stretches.is_empty() {
+            String::new()
+        } else {
+            format!(
+                " Left out ({} samples): {}.",
+                m.excluded_samples,
+                m.flat_stretches
+                    .iter()
+                    .map(|f| format!(
+                        "{} stuck at {} from {:.3} to {:.3} s ({} samples)",
+                        f.channel, f.value, f.start_s, f.end_s, f.samples
+                    ))
+                    .collect::<Vec<_>>()
+                    .join("; ")
+            )
+        }
+    );
     let _ = writeln!(s, "\n## Fit\n");
     let _ = writeln!(
         s,

@@ -4,10 +4,68 @@ use std::collections::BTreeMap;
 
 use twin::Effect;
 
+use crate::calibrate::{self, Calibrated, Calibration};
 use crate::data::{prepare, DataError, Phase, Prepared, Signals};
 use crate::model::{baseline_start, effect_params, evaluate, extend, fit, Fit};
 use crate::report::*;
 use crate::stats;
+use crate::unexplained::unexplained;
+
+/// How candidates are accepted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Selector {
+    /// Against each candidate's null from a parametric bootstrap of the current model, at a
+    /// family-wise false-alarm rate, with physical parameters and a held-out gain
+    /// ([`crate::calibrate`]).
+    #[default]
+    Calibrated,
+    /// The four hand-set rules of the first version ([`Thresholds`]).
+    Rules,
+    /// SINDy-style sparse regression of the baseline residual ([`crate::sindy`]), the
+    /// comparison method.
+    Sindy,
+}
+
+impl Selector {
+    /// Name on the command line and in the report.
+    pub fn name(self) -> &'static str {
+        match self {
+            Selector::Calibrated => "calibrated",
+            Selector::Rules => "rules",
+            Selector::Sindy => "sindy",
+        }
+    }
+    /// Parse a name.
+    pub fn parse(s: &str) -> Option<Self> {
+        [Selector::Calibrated, Selector::Rules, Selector::Sindy]
+            .into_iter()
+            .find(|x| x.name() == s)
+    }
+}
+
+/// Everything that steers a diagnosis.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Options {
+    /// How candidates are accepted.
+    pub selector: Selector,
+    /// The hand-set rules (the `rules` selector; also reported as checks by the others).
+    pub thresholds: Thresholds,
+    /// The bootstrap calibration (the `calibrated` selector).
+    pub calibration: Calibration,
+}
+
+/// What a long diagnosis is doing, for a progress bar.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Progress {
+    /// Selection round (0 for the baseline).
+    pub round: usize,
+    /// What is being done.
+    pub stage: &'static str,
+    /// Work done in this stage and its total.
+    pub done: usize,
+    /// Total work in this stage.
+    pub total: usize,
+}
 
 /// Acceptance thresholds (docs/diagnose.md explains each).
 #[derive(Debug, Clone, PartialEq)]
@@ -281,8 +339,14 @@ fn mismatch_list(d: &Prepared, reg: &Regions, r: &[f64], th: &Thresholds) -> Vec
     list
 }
 
+/// The weighted residual `√w (F − F_model)` (noise-equivalent, see
+/// [`crate::model::predictive_weights`]).
 fn residual(d: &Prepared, force: &[f64]) -> Vec<f64> {
-    d.f.iter().zip(force).map(|(f, p)| f - p).collect()
+    d.f.iter()
+        .zip(force)
+        .zip(&d.weight)
+        .map(|((f, p), w)| w.sqrt() * (f - p))
+        .collect()
 }
 
 fn residual_stats(d: &Prepared, r: &[f64]) -> ResidualStats {
@@ -330,24 +394,39 @@ fn residual_stats(d: &Prepared, r: &[f64]) -> ResidualStats {
     }
 }
 
+/// Sum of squared held-out residuals per held-out validation block, with the block's
+/// time span and sample count.
+fn holdout_blocks(d: &Prepared, force: &[f64]) -> Vec<(f64, f64, usize, f64, f64)> {
+    let mut s = vec![(f64::INFINITY, f64::NEG_INFINITY, 0usize, 0.0, 0.0); d.blocks];
+    for j in 0..d.len() {
+        if d.holdout[j] {
+            let b = &mut s[d.block[j]];
+            b.0 = b.0.min(d.t[j]);
+            b.1 = b.1.max(d.t[j]);
+            b.2 += 1;
+            b.3 += d.weight[j] * (d.f[j] - force[j]).powi(2);
+            b.4 += d.weight[j];
+        }
+    }
+    s.into_iter().filter(|x| x.2 > 0).collect()
+}
+
 fn holdout_cycle_sse(d: &Prepared, force: &[f64]) -> Vec<f64> {
-    let mut s = vec![0.0; d.cycles];
-    for j in 0..d.len() {
-        if d.holdout[j] {
-            s[d.cycle[j]] += (d.f[j] - force[j]).powi(2);
-        }
-    }
-    // Blocks with held-out samples only.
-    let mut has = vec![false; d.cycles];
-    for j in 0..d.len() {
-        if d.holdout[j] {
-            has[d.cycle[j]] = true;
-        }
-    }
-    s.into_iter()
-        .zip(has)
-        .filter(|x| x.1)
-        .map(|x| x.0)
+    holdout_blocks(d, force).into_iter().map(|x| x.3).collect()
+}
+
+/// Held-out RMS per held-out block, before and after.
+fn block_gains(d: &Prepared, before: &[f64], after: &[f64]) -> Vec<BlockGain> {
+    holdout_blocks(d, before)
+        .into_iter()
+        .zip(holdout_blocks(d, after))
+        .map(|(b, a)| BlockGain {
+            start_s: b.0,
+            end_s: b.1,
+            samples: b.2,
+            rmse_before_n: (b.3 / b.4.max(1e-300)).sqrt(),
+            rmse_after_n: (a.3 / a.4.max(1e-300)).sqrt(),
+        })
         .collect()
 }
 
@@ -371,7 +450,7 @@ fn effect_parameters(fit: &Fit, e: Effect) -> BTreeMap<String, Parameter> {
 }
 
 /// Fit `e` on top of `current` (several start values for the nonlinear ones).
-fn fit_candidate(d: &Prepared, current: &Fit, e: Effect) -> Fit {
+pub fn fit_candidate(d: &Prepared, current: &Fit, e: Effect) -> Fit {
     let lay = current.layout.with(e);
     let fpeak = d.f.iter().fold(0.0f64, |m, x| m.max(x.abs())).max(1e-9);
     let xr = {
@@ -391,10 +470,7 @@ fn fit_candidate(d: &Prepared, current: &Fit, e: Effect) -> Fit {
     for s in starts {
         let th = extend(&current.layout, &current.theta, &lay, &[(e, s)]);
         let ev = evaluate(d, &lay, &th, false);
-        let sse: f64 = (0..d.len())
-            .filter(|&j| !d.holdout[j])
-            .map(|j| (d.f[j] - ev.force[j]).powi(2))
-            .sum();
+        let sse = crate::model::sse_train(d, &ev.force);
         if best.as_ref().is_none_or(|b| sse < b.0) {
             best = Some((sse, th));
         }
@@ -497,6 +573,7 @@ fn judge(
             holdout_z: z,
             structure_drop: best.0,
             structure_region: best.1,
+            calibration: None,
         },
         passed,
     }
@@ -512,10 +589,9 @@ fn explanation(e: Effect, p: &BTreeMap<String, Parameter>) -> String {
             g("friction_force")
         ),
         Effect::GasSpring => format!(
-            "a force offset of {:.1} N and a stiffness of {:.3} N/mm present at every current: \
-             gas accumulator preload (offset ≈ −p0 Ar) and its spring (a sensor offset would \
-             look the same)",
-            g("force_offset"),
+            "a stiffness of {:.3} N/mm present at every current, pushing the rod out harder \
+             the further it is in: the gas accumulator's spring (its preload −p0 Ar cannot be \
+             told from a force-sensor offset and is in the baseline's force_offset_N)",
             g("stiffness")
         ),
         Effect::FluidInertia => format!(
@@ -542,12 +618,328 @@ fn explanation(e: Effect, p: &BTreeMap<String, Parameter>) -> String {
     }
 }
 
+/// A candidate's verdict in one round.
+struct Verdict {
+    judged: Judged,
+    calibrated: Option<Calibrated>,
+    pass: bool,
+    /// Strength of the evidence, to rank passing candidates: −ΔBIC for the rules,
+    /// statistic / threshold for the calibrated selector.
+    score: f64,
+}
+
+/// Fit and judge every remaining candidate on top of `current`, in parallel.
+fn fit_and_judge(
+    d: &Prepared,
+    reg: &Regions,
+    current: &Fit,
+    remaining: &[Effect],
+    flags: &[usize],
+    th: &Thresholds,
+) -> Vec<Judged> {
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = remaining
+            .iter()
+            .map(|&e| {
+                scope.spawn(move || {
+                    let cand = fit_candidate(d, current, e);
+                    judge(d, reg, current, flags, cand, e, th)
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().expect("candidate fit does not panic"))
+            .collect()
+    })
+}
+
+/// The verdicts of one round under the options' selector.
+#[allow(clippy::too_many_arguments)]
+fn round_verdicts(
+    d: &Prepared,
+    reg: &Regions,
+    current: &Fit,
+    remaining: &[Effect],
+    flags: &[usize],
+    opts: &Options,
+    round: usize,
+    progress: &(dyn Fn(Progress) + Sync),
+) -> Vec<Verdict> {
+    let judged = fit_and_judge(d, reg, current, remaining, flags, &opts.thresholds);
+    if opts.selector != Selector::Calibrated {
+        return judged
+            .into_iter()
+            .map(|j| Verdict {
+                pass: j.ok(),
+                score: -j.evidence.delta_bic,
+                calibrated: None,
+                judged: j,
+            })
+            .collect();
+    }
+    let cal = &opts.calibration;
+    let dp = |j: &Judged| j.fit.layout.len() - current.layout.len();
+    let stat: Vec<f64> = judged
+        .iter()
+        .map(|j| calibrate::statistic(current, &j.fit))
+        .collect();
+    // Held-out gain and a physical parameter first; then the statistic above the screen.
+    let eligible = |j: &Judged| {
+        j.passed[2] && j.evidence.holdout_rmse_after_n < j.evidence.holdout_rmse_before_n
+    };
+    let boot: Vec<Effect> = judged
+        .iter()
+        .zip(&stat)
+        .filter(|(j, t)| eligible(j) && **t > calibrate::screened(**t, dp(j), cal).threshold)
+        .map(|(j, _)| j.effect)
+        .collect();
+    let total = if boot.is_empty() { 0 } else { cal.replicates };
+    progress(Progress {
+        round,
+        stage: "bootstrap null",
+        done: 0,
+        total,
+    });
+    let nulls = calibrate::null_statistics(
+        d,
+        current,
+        &boot,
+        cal,
+        round,
+        &fit_candidate,
+        &|k| {
+            progress(Progress {
+                round,
+                stage: "bootstrap null",
+                done: k,
+                total,
+            })
+        },
+    );
+    judged
+        .into_iter()
+        .zip(stat)
+        .map(|(j, t)| {
+            let c = match boot.iter().position(|e| *e == j.effect) {
+                Some(q) => {
+                    let col: Vec<f64> = nulls.iter().map(|row| row[q]).collect();
+                    calibrate::judge_null(t, &col, dp(&j), cal.alpha_per_test())
+                }
+                None => calibrate::screened(t, dp(&j), cal),
+            };
+            let pass = eligible(&j) && c.passes() && c.replicates > 0;
+            Verdict {
+                pass,
+                score: c.statistic / c.threshold.max(1e-300),
+                calibrated: Some(c),
+                judged: j,
+            }
+        })
+        .collect()
+}
+
+/// Forward selection under the calibrated or rules selector. Returns the final fit, the
+/// accepted effects with their evidence and block gains, the undecided pairs and every
+/// trial.
+struct Selection {
+    current: Fit,
+    accepted: Vec<(Effect, Evidence, Vec<BlockGain>)>,
+    undecided: Vec<Undecided>,
+    undecided_effects: Vec<Effect>,
+    trials: Vec<Trial>,
+}
+
+fn undecided_pair(winner: Effect, other: Effect, why: &str) -> Undecided {
+    Undecided {
+        effects: vec![winner.id().into(), other.id().into()],
+        why: format!(
+            "{} and {} {why}: the data cannot tell them apart. The final model carries {} for \
+             prediction.",
+            winner.id(),
+            other.id(),
+            winner.id()
+        ),
+    }
+}
+
+fn forward_selection(
+    d: &Prepared,
+    reg: &Regions,
+    base: &Fit,
+    opts: &Options,
+    progress: &(dyn Fn(Progress) + Sync),
+) -> Selection {
+    let th = &opts.thresholds;
+    let mut sel = Selection {
+        current: base.clone(),
+        accepted: Vec::new(),
+        undecided: Vec::new(),
+        undecided_effects: Vec::new(),
+        trials: Vec::new(),
+    };
+    let mut remaining: Vec<Effect> = Effect::ALL.to_vec();
+    // Candidates that tied with the one accepted in the previous round.
+    let mut pending_ties: Vec<(Effect, Effect)> = Vec::new();
+    for round in 1..=Effect::ALL.len() {
+        if remaining.is_empty() {
+            break;
+        }
+        progress(Progress {
+            round,
+            stage: "fitting candidates",
+            done: 0,
+            total: remaining.len(),
+        });
+        let flags = flagged(d, reg, &residual(d, &sel.current.force), th);
+        let verdicts = round_verdicts(
+            d,
+            reg,
+            &sel.current,
+            &remaining,
+            &flags,
+            opts,
+            round,
+            progress,
+        );
+        // A tied candidate that no longer passes on top of the accepted one is
+        // indistinguishable from it.
+        for (winner, other) in pending_ties.drain(..) {
+            let still = verdicts
+                .iter()
+                .find(|v| v.judged.effect == other)
+                .is_some_and(|v| v.pass);
+            if !still {
+                sel.undecided.push(undecided_pair(
+                    winner,
+                    other,
+                    "both pass on their own with nearly the same strength of evidence, and \
+                     neither adds anything once the other is in",
+                ));
+                sel.undecided_effects.push(winner);
+                remaining.retain(|x| *x != other);
+            }
+        }
+        let best = verdicts
+            .iter()
+            .filter(|v| v.pass && remaining.contains(&v.judged.effect))
+            .max_by(|a, b| a.score.total_cmp(&b.score));
+        let best_effect = best.map(|b| b.judged.effect);
+        for v in &verdicts {
+            let j = &v.judged;
+            let mut evidence = j.evidence.clone();
+            evidence.calibration = v.calibrated.clone();
+            sel.trials.push(Trial {
+                round,
+                effect: j.effect.id().into(),
+                evidence,
+                parameters: effect_parameters(&j.fit, j.effect),
+                passed: j.passed,
+                accepted: Some(j.effect) == best_effect,
+            });
+        }
+        let Some(best) = best else { break };
+        for v in &verdicts {
+            if v.judged.effect != best.judged.effect
+                && v.pass
+                && (v.score - best.score).abs() <= th.tie_fraction * best.score.abs()
+            {
+                pending_ties.push((best.judged.effect, v.judged.effect));
+            }
+        }
+        let mut evidence = best.judged.evidence.clone();
+        evidence.calibration = best.calibrated.clone();
+        let gains = block_gains(d, &sel.current.force, &best.judged.fit.force);
+        sel.accepted.push((best.judged.effect, evidence, gains));
+        remaining.retain(|x| *x != best.judged.effect);
+        sel.current = best.judged.fit.clone();
+    }
+    // Ties pending after the last round: test the other on top of the final model.
+    for (winner, other) in pending_ties.drain(..) {
+        if remaining.contains(&other) {
+            let flags = flagged(d, reg, &residual(d, &sel.current.force), th);
+            let v = round_verdicts(
+                d,
+                reg,
+                &sel.current,
+                &[other],
+                &flags,
+                opts,
+                Effect::ALL.len() + 1,
+                progress,
+            );
+            if !v.first().is_some_and(|v| v.pass) {
+                sel.undecided.push(undecided_pair(
+                    winner,
+                    other,
+                    "both pass on their own with nearly the same strength of evidence, and the \
+                     second adds nothing once the first is in",
+                ));
+                sel.undecided_effects.push(winner);
+            }
+        }
+    }
+    sel
+}
+
+/// The comparison method: SINDy-style selection on the baseline residual, then the chosen
+/// effects fitted one after the other (no acceptance test).
+fn sindy_selection(d: &Prepared, reg: &Regions, base: &Fit, opts: &Options) -> Selection {
+    let mut sel = Selection {
+        current: base.clone(),
+        accepted: Vec::new(),
+        undecided: Vec::new(),
+        undecided_effects: Vec::new(),
+        trials: Vec::new(),
+    };
+    for e in crate::sindy::sindy_select(d, base) {
+        let flags = flagged(d, reg, &residual(d, &sel.current.force), &opts.thresholds);
+        let cand = fit_candidate(d, &sel.current, e);
+        let j = judge(d, reg, &sel.current, &flags, cand, e, &opts.thresholds);
+        let gains = block_gains(d, &sel.current.force, &j.fit.force);
+        sel.trials.push(Trial {
+            round: 1,
+            effect: e.id().into(),
+            evidence: j.evidence.clone(),
+            parameters: effect_parameters(&j.fit, e),
+            passed: j.passed,
+            accepted: true,
+        });
+        sel.accepted.push((e, j.evidence, gains));
+        sel.current = j.fit;
+    }
+    sel
+}
+
 /// Diagnose a recording.
-pub fn diagnose(signals: &Signals, input: &str, th: &Thresholds) -> Result<Diagnosis, DataError> {
+pub fn diagnose(signals: &Signals, input: &str, opts: &Options) -> Result<Diagnosis, DataError> {
+    diagnose_with_progress(signals, input, opts, &|_| {})
+}
+
+/// Diagnose a recording, reporting progress (for a progress bar).
+pub fn diagnose_with_progress(
+    signals: &Signals,
+    input: &str,
+    opts: &Options,
+    progress: &(dyn Fn(Progress) + Sync),
+) -> Result<Diagnosis, DataError> {
+    let th = &opts.thresholds;
+    progress(Progress {
+        round: 0,
+        stage: "baseline",
+        done: 0,
+        total: 1,
+    });
     let d = prepare(signals)?;
     let reg = regions(&d);
     let (lay, theta) = baseline_start(&d);
-    let base = fit(&d, &lay, &theta);
+    let first = fit(&d, &lay, &theta);
+    // Errors in variables: weight each sample by how predictable its force is under the
+    // rebuilt velocity's error, then refit.
+    let mut d = d;
+    d.weight = crate::model::predictive_weights(&d, &first);
+    let base = fit(&d, &first.layout, &first.theta);
+    let d = d;
     let summary = |f: &Fit| ModelSummary {
         model: f.layout.name(),
         train_rmse_n: f.train_rmse(),
@@ -556,118 +948,23 @@ pub fn diagnose(signals: &Signals, input: &str, th: &Thresholds) -> Result<Diagn
     };
     let r_base = residual(&d, &base.force);
     let mismatch = mismatch_list(&d, &reg, &r_base, th);
-    let mut current = base.clone();
-    let mut remaining: Vec<Effect> = Effect::ALL.to_vec();
-    let mut accepted: Vec<(Effect, Evidence)> = Vec::new();
-    let mut undecided: Vec<Undecided> = Vec::new();
-    let mut undecided_effects: Vec<Effect> = Vec::new();
-    let mut trials: Vec<Trial> = Vec::new();
-    // Candidates that tied with the one accepted in the previous round.
-    let mut pending_ties: Vec<(Effect, Effect)> = Vec::new();
-    for round in 1..=Effect::ALL.len() {
-        if remaining.is_empty() {
-            break;
-        }
-        let flags = flagged(&d, &reg, &residual(&d, &current.force), th);
-        // Candidates are fitted in parallel (independent fits on shared data).
-        let judged: Vec<Judged> = std::thread::scope(|scope| {
-            let handles: Vec<_> = remaining
-                .iter()
-                .map(|&e| {
-                    let (d, reg, current, flags) = (&d, &reg, &current, &flags);
-                    scope.spawn(move || {
-                        let cand = fit_candidate(d, current, e);
-                        judge(d, reg, current, flags, cand, e, th)
-                    })
-                })
-                .collect();
-            handles
-                .into_iter()
-                .map(|h| h.join().expect("candidate fit does not panic"))
-                .collect()
-        });
-        // Resolve ties from the previous round: a tied candidate that no longer passes on
-        // top of the accepted one is indistinguishable from it.
-        for (winner, other) in pending_ties.drain(..) {
-            let still = judged
-                .iter()
-                .find(|j| j.effect == other)
-                .is_some_and(|j| j.ok());
-            if !still {
-                undecided.push(Undecided {
-                    effects: vec![winner.id().into(), other.id().into()],
-                    why: format!(
-                        "{} and {} pass every rule on their own with nearly the same criterion \
-                         (within {:.0} %), and neither adds anything once the other is in: the \
-                         data cannot tell them apart. The final model carries {} for prediction.",
-                        winner.id(),
-                        other.id(),
-                        100.0 * th.tie_fraction,
-                        winner.id()
-                    ),
-                });
-                undecided_effects.push(winner);
-                remaining.retain(|x| *x != other);
-            }
-        }
-        let best = judged
-            .iter()
-            .filter(|j| j.ok() && remaining.contains(&j.effect))
-            .min_by(|a, b| a.evidence.delta_bic.total_cmp(&b.evidence.delta_bic));
-        let best_effect = best.map(|b| b.effect);
-        for j in &judged {
-            trials.push(Trial {
-                round,
-                effect: j.effect.id().into(),
-                evidence: j.evidence.clone(),
-                parameters: effect_parameters(&j.fit, j.effect),
-                passed: j.passed,
-                accepted: Some(j.effect) == best_effect,
-            });
-        }
-        let Some(best) = best else { break };
-        for j in &judged {
-            if j.effect != best.effect
-                && j.ok()
-                && (j.evidence.delta_bic - best.evidence.delta_bic).abs()
-                    <= th.tie_fraction * best.evidence.delta_bic.abs()
-            {
-                pending_ties.push((best.effect, j.effect));
-            }
-        }
-        accepted.push((best.effect, best.evidence.clone()));
-        remaining.retain(|x| *x != best.effect);
-        current = best.fit.clone();
-    }
-    // Ties pending after the last round: test the other on top of the final model.
-    for (winner, other) in pending_ties.drain(..) {
-        if remaining.contains(&other) {
-            let flags = flagged(&d, &reg, &residual(&d, &current.force), th);
-            let cand = fit_candidate(&d, &current, other);
-            if !judge(&d, &reg, &current, &flags, cand, other, th).ok() {
-                undecided.push(Undecided {
-                    effects: vec![winner.id().into(), other.id().into()],
-                    why: format!(
-                        "{} and {} pass every rule on their own with nearly the same criterion, \
-                         and the second adds nothing once the first is in",
-                        winner.id(),
-                        other.id()
-                    ),
-                });
-                undecided_effects.push(winner);
-            }
-        }
-    }
-    let findings = accepted
+    let sel = match opts.selector {
+        Selector::Sindy => sindy_selection(&d, &reg, &base, opts),
+        _ => forward_selection(&d, &reg, &base, opts, progress),
+    };
+    let current = sel.current;
+    let findings = sel
+        .accepted
         .iter()
-        .filter(|(e, _)| !undecided_effects.contains(e))
-        .map(|(e, ev)| {
+        .filter(|(e, _, _)| !sel.undecided_effects.contains(e))
+        .map(|(e, ev, gains)| {
             let parameters = effect_parameters(&current, *e);
             Finding {
                 effect: e.id().into(),
                 explanation: explanation(*e, &parameters),
                 parameters,
                 evidence: ev.clone(),
+                block_gains: gains.clone(),
             }
         })
         .collect();
@@ -675,7 +972,7 @@ pub fn diagnose(signals: &Signals, input: &str, th: &Thresholds) -> Result<Diagn
     let rms_where = |r: &[f64], pred: &dyn Fn(usize) -> bool| {
         let (mut s, mut m) = (0.0, 0usize);
         for (j, x) in r.iter().enumerate() {
-            if pred(j) {
+            if pred(j) && !d.excluded[j] {
                 s += x * x;
                 m += 1;
             }
@@ -697,33 +994,48 @@ pub fn diagnose(signals: &Signals, input: &str, th: &Thresholds) -> Result<Diagn
             final_rms_n: rms_where(&r_final, &|j| (d.v[j] < 0.0) == neg),
         });
     }
-    let thresholds = BTreeMap::from([
+    let mut thresholds = BTreeMap::from([
         ("min_holdout_rmse_drop".to_string(), th.min_holdout_drop),
         ("min_holdout_paired_z".to_string(), th.min_holdout_z),
         ("max_delta_bic".to_string(), th.max_delta_bic),
         ("min_structure_drop".to_string(), th.min_structure_drop),
         ("flag_structure_ratio".to_string(), th.flag_ratio),
-        ("tie_fraction_of_delta_bic".to_string(), th.tie_fraction),
+        ("tie_fraction".to_string(), th.tie_fraction),
     ]);
+    if opts.selector == Selector::Calibrated {
+        let c = &opts.calibration;
+        thresholds.insert("family_alpha".into(), c.family_alpha);
+        thresholds.insert("alpha_per_test".into(), c.alpha_per_test());
+        thresholds.insert("bootstrap_replicates".into(), c.replicates as f64);
+        thresholds.insert("screen_fraction".into(), c.screen_fraction);
+    }
+    let unexplained = unexplained(&d, &r_final);
     let report = Report {
         input: input.to_string(),
         samples: d.len(),
+        selector: opts.selector.name().into(),
+        measurement: d.measurement.clone(),
         split: Split {
             method: d.split_method.clone(),
-            train_samples: d.holdout.iter().filter(|h| !**h).count(),
+            train_samples: d.train.iter().filter(|h| **h).count(),
             holdout_samples: d.holdout.iter().filter(|h| **h).count(),
             strokes: d.cycles,
             segments: d.segments,
+            blocks: d.blocks,
             current_knots_a: d.knots.clone(),
         },
         baseline: summary(&base),
+        baseline_parameters: base_parameters(&base),
         mismatch,
         baseline_residual: residual_stats(&d, &r_base),
         findings,
-        undecided,
-        trials,
+        undecided: sel.undecided,
+        unexplained,
+        trials: sel.trials,
         final_model: summary(&current),
+        final_parameters: base_parameters(&current),
         final_residual: residual_stats(&d, &r_final),
+        holdout_blocks: block_gains(&d, &base.force, &current.force),
         residual_by_phase,
         thresholds,
     };
@@ -734,4 +1046,16 @@ pub fn diagnose(signals: &Signals, input: &str, th: &Thresholds) -> Result<Diagn
         final_effects: current.layout.effects.clone(),
         data: d,
     })
+}
+
+/// The baseline's measurement parameters (force offset, leak velocity) of a fit.
+fn base_parameters(f: &Fit) -> BTreeMap<String, f64> {
+    let l = &f.layout;
+    BTreeMap::from([
+        ("force_offset_N".to_string(), f.theta[l.offset_index()]),
+        (
+            "leak_velocity_mm_s".to_string(),
+            1e3 * f.theta[l.leak_index()],
+        ),
+    ])
 }

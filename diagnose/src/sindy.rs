@@ -13,7 +13,8 @@
 use twin::Effect;
 
 use crate::data::{prepare, DataError, Signals};
-use crate::model::{baseline_start, evaluate, fit};
+use crate::data::Prepared;
+use crate::model::{baseline_start, evaluate, fit, Fit};
 
 /// Threshold on a term's contribution (coefficient × column RMS) relative to the RMS of
 /// the residual.
@@ -24,13 +25,19 @@ pub fn sindy_effects(signals: &Signals) -> Result<Vec<Effect>, DataError> {
     let d = prepare(signals)?;
     let (lay, th0) = baseline_start(&d);
     let base = fit(&d, &lay, &th0);
+    Ok(sindy_select(&d, &base))
+}
+
+/// Effects whose terms survive the sequential thresholding on the residual of `base`.
+pub fn sindy_select(d: &Prepared, base: &Fit) -> Vec<Effect> {
+    let lay = &base.layout;
     let b = &base.force;
     let n = d.len();
     // Baseline with a 10 ms first-order lag on the current.
     let lag_lay = lay.with(Effect::FieldLag);
     let mut th_lag = base.theta.clone();
     th_lag.push(0.01);
-    let b_lag = evaluate(&d, &lag_lay, &th_lag, false).force;
+    let b_lag = evaluate(d, &lag_lay, &th_lag, false).force;
     let mut db = vec![0.0; n];
     for j in 1..n.saturating_sub(1) {
         db[j] = (b[j + 1] - b[j - 1]) / (d.t[j + 1] - d.t[j - 1]);
@@ -58,7 +65,7 @@ pub fn sindy_effects(signals: &Signals) -> Result<Vec<Effect>, DataError> {
         (None, d.v.iter().map(|v| v * v.abs()).collect()),
         (None, d.v.iter().map(|v| v * v * v).collect()),
     ];
-    let rows: Vec<usize> = (0..n).filter(|&j| !d.holdout[j]).collect();
+    let rows: Vec<usize> = (0..n).filter(|&j| d.train[j]).collect();
     let r: Vec<f64> = rows.iter().map(|&j| d.f[j] - b[j]).collect();
     let r_rms = (r.iter().map(|x| x * x).sum::<f64>() / r.len() as f64).sqrt();
     let scale: Vec<f64> = cols
@@ -122,5 +129,5 @@ pub fn sindy_effects(signals: &Signals) -> Result<Vec<Effect>, DataError> {
         }
     }
     found.sort();
-    Ok(found)
+    found
 }

@@ -4,14 +4,14 @@
 //! recordings (current steps without lag, an S-shaped yield curve) it must find nothing.
 
 use diagnose::study::{generate, Scenario, YieldLaw};
-use diagnose::{diagnose, Diagnosis, Thresholds};
+use diagnose::{diagnose, Diagnosis, Options};
 use twin::Effect;
 
 const SEEDS: [u64; 3] = [1000, 1001, 1002];
 
 fn run(scn: &Scenario, seed: u64) -> Diagnosis {
     let (sig, _) = generate(scn, seed);
-    diagnose(&sig, &scn.name, &Thresholds::default()).expect("generated data are valid")
+    diagnose(&sig, &scn.name, &Options::default()).expect("generated data are valid")
 }
 
 fn expect_exactly(scn: &Scenario, seeds: &[u64]) {

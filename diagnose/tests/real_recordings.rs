@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use diagnose::{diagnose, Signals, Thresholds};
+use diagnose::{diagnose, Options, Signals};
 
 fn data_dir() -> PathBuf {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -42,7 +42,7 @@ fn concatenated(stem: &str) -> Signals {
 
 fn check(stem: &str) {
     let sig = concatenated(stem);
-    let dg = diagnose(&sig, stem, &Thresholds::default()).expect("real data are valid");
+    let dg = diagnose(&sig, stem, &Options::default()).expect("real data are valid");
     let r = &dg.report;
     eprintln!(
         "{stem}: {} samples, {} strokes, knots {:?}; baseline train {:.1} N held-out {:.1} N; \

@@ -2,7 +2,7 @@
 //! one: at a single stroke frequency a fluid mass (F = m a = −m ω² x) and a gas stiffness
 //! (F = k x, k = −m ω²) predict the same force.
 
-use diagnose::{diagnose, Signals, Thresholds};
+use diagnose::{diagnose, Options, Signals};
 use twin::models::two_chamber::{TwoChamber, TwoChamberParams};
 use twin::stand::{run, Noise, Programme};
 use twin::{Effect, EffectSet};
@@ -29,8 +29,9 @@ fn inertia_at_one_frequency_is_undecided_against_a_gas_stiffness() {
         velocity_m_s: samples.iter().map(|s| s.input.velocity_m_s).collect(),
         force_n: samples.iter().map(|s| s.measured_force_n).collect(),
         current_a: samples.iter().map(|s| s.input.current_a).collect(),
+        velocity_derived: false,
     };
-    let dg = diagnose(&sig, "one frequency", &Thresholds::default()).unwrap();
+    let dg = diagnose(&sig, "one frequency", &Options::default()).unwrap();
     let r = &dg.report;
     assert!(
         r.undecided.iter().any(|u| {

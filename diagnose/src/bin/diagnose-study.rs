@@ -7,7 +7,7 @@
 use std::time::Instant;
 
 use diagnose::study::{generate, Scenario};
-use diagnose::{diagnose, sindy, Thresholds};
+use diagnose::{diagnose, sindy};
 use twin::Effect;
 
 fn ids(v: &[Effect]) -> String {
@@ -41,7 +41,7 @@ fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let seeds: u64 = args.iter().find_map(|a| a.parse().ok()).unwrap_or(5);
     let verbose = args.iter().any(|a| a == "--verbose");
-    let th = Thresholds::default();
+    let th = diagnose::Options::default();
     let only = args
         .iter()
         .position(|a| a == "--only")

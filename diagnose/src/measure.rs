@@ -1,0 +1,515 @@
+//! The measurement model: what a recording's own channels say about their noise, the
+//! velocity rebuilt from them, and the stretches where a channel is stuck.
+//!
+//! On a rig, displacement, velocity and force are all measured. The velocity is often
+//! differentiated from a noisy displacement or read from a separate noisy sensor, so near
+//! a stroke reversal its sign is uncertain — and the Bingham force jumps by 2 F_y there.
+//! diagnose therefore
+//! 1. rebuilds the velocity from both channels by local cubic least squares over a window
+//!    of ±5 % of the local stroke period (unbiased for cubics, so the reversal is not
+//!    shifted), fusing the displacement's derivative and the smoothed velocity channel by
+//!    their estimated error variances;
+//! 2. estimates each channel's white-noise level from the residual of that local fit
+//!    (`e_j² / (1 − H_jj)`, median, χ²₁ corrected: robust to the force jump and to
+//!    structure), and from it the standard deviation σ_v̂ of the rebuilt velocity;
+//! 3. reports stretches where a channel repeats one value (clipping, a dead sensor, a
+//!    saturated amplifier), which the fit and the held-out check then leave out.
+//!
+//! The models (`crate::model`) predict the *expected* force under that velocity error:
+//! the fluid law gets a pre-yield "leak" velocity `v_ε ≥ √(π/2) σ_v̂`, the slope the
+//! sign function has at v = 0 once it is smoothed by a Gaussian velocity error
+//! (d/dv E[sgn(v + e)] = √(2/π)/σ at 0).
+
+use nalgebra::{Matrix4, Vector4};
+use serde::Serialize;
+
+/// √(π/2): the leak velocity that matches the slope of a Gaussian-smoothed sign at zero,
+/// per unit velocity error standard deviation.
+pub const LEAK_PER_SIGMA: f64 = 1.253_314_137_315_500_3;
+
+/// Local cubic least-squares fit at every sample.
+#[derive(Debug, Clone, Default)]
+struct LocalFit {
+    /// Fitted value at the sample.
+    value: Vec<f64>,
+    /// Fitted first derivative at the sample.
+    slope: Vec<f64>,
+    /// Leverage H_jj of the sample on its own fitted value.
+    leverage: Vec<f64>,
+    /// Σ of squared weights of the derivative estimate (its variance per unit noise variance).
+    slope_gain: Vec<f64>,
+}
+
+/// Local cubic fit of `y(t)` over ±`half[j]` samples around each sample j, windows cut at
+/// time gaps (`run` lists the gap-free runs as half-open index ranges).
+fn local_cubic(t: &[f64], y: &[f64], half: &[usize], run: &[(usize, usize)]) -> LocalFit {
+    let n = t.len();
+    let mut out = LocalFit {
+        value: vec![0.0; n],
+        slope: vec![0.0; n],
+        leverage: vec![1.0; n],
+        slope_gain: vec![f64::INFINITY; n],
+    };
+    for &(a, b) in run {
+        for j in a..b {
+            let lo = j.saturating_sub(half[j]).max(a);
+            let hi = (j + half[j] + 1).min(b);
+            if hi - lo < 5 {
+                out.value[j] = y[j];
+                out.slope[j] = if j + 1 < b {
+                    (y[j + 1] - y[j]) / (t[j + 1] - t[j])
+                } else if j > a {
+                    (y[j] - y[j - 1]) / (t[j] - t[j - 1])
+                } else {
+                    0.0
+                };
+                continue;
+            }
+            let scale = (t[hi - 1] - t[lo]).max(1e-12);
+            let mut m = Matrix4::<f64>::zeros();
+            let mut r = Vector4::<f64>::zeros();
+            for k in lo..hi {
+                let s = (t[k] - t[j]) / scale;
+                let bv = Vector4::new(1.0, s, s * s, s * s * s);
+                m += bv * bv.transpose();
+                r += bv * y[k];
+            }
+            let Some(inv) = m.try_inverse() else {
+                out.value[j] = y[j];
+                continue;
+            };
+            let beta = inv * r;
+            out.value[j] = beta[0];
+            out.slope[j] = beta[1] / scale;
+            out.leverage[j] = inv[(0, 0)];
+            out.slope_gain[j] = inv[(1, 1)] / (scale * scale);
+        }
+    }
+    out
+}
+
+/// White-noise standard deviation of a channel from its local-fit residuals (robust).
+fn noise_sigma(y: &[f64], fit: &LocalFit) -> f64 {
+    let mut z: Vec<f64> = y
+        .iter()
+        .zip(&fit.value)
+        .zip(&fit.leverage)
+        .filter(|(_, h)| **h < 0.95)
+        .map(|((a, b), h)| (a - b).powi(2) / (1.0 - h))
+        .collect();
+    if z.is_empty() {
+        return 0.0;
+    }
+    let m = z.len() / 2;
+    let (_, med, _) = z.select_nth_unstable_by(m, f64::total_cmp);
+    // Median of χ²₁ is 0.4549.
+    (*med / 0.454_936_4).sqrt()
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let m = v.len() / 2;
+    let (_, x, _) = v.select_nth_unstable_by(m, f64::total_cmp);
+    *x
+}
+
+/// A stretch where one channel holds exactly one value (clipped or stuck).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FlatStretch {
+    /// Channel name (CSV column).
+    pub channel: String,
+    /// First and last time of the stretch \[s\].
+    pub start_s: f64,
+    /// Last time \[s\].
+    pub end_s: f64,
+    /// Samples in the stretch.
+    pub samples: usize,
+    /// The value the channel is stuck at.
+    pub value: f64,
+}
+
+/// What the measurement model found in a recording.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MeasurementSummary {
+    /// Median sample interval \[s\].
+    pub sample_interval_s: f64,
+    /// Typical stroke period (twice the median time between velocity reversals) \[s\].
+    pub stroke_period_s: f64,
+    /// Median half-width of the local cubic window \[samples\] (5 % of the local stroke
+    /// period, 3–400 samples).
+    pub window_half_samples: usize,
+    /// White-noise σ of the displacement channel \[m\].
+    pub displacement_noise_m: f64,
+    /// White-noise σ of the velocity channel \[m/s\] (`null` when it was derived).
+    pub velocity_noise_m_s: Option<f64>,
+    /// σ of the rebuilt velocity \[m/s\].
+    pub rebuilt_velocity_sigma_m_s: f64,
+    /// High-frequency (white) part of the force noise, from the force channel alone \[N\].
+    pub force_noise_hf_n: f64,
+    /// Whether the velocity column was derived from displacement by the reader.
+    pub velocity_derived: bool,
+    /// Channels stuck at one value, left out of fitting and validation.
+    pub flat_stretches: Vec<FlatStretch>,
+    /// Samples left out for them.
+    pub excluded_samples: usize,
+}
+
+/// The measurement model applied to one recording.
+#[derive(Debug, Clone)]
+pub struct Measured {
+    /// Rebuilt velocity \[m/s\].
+    pub v: Vec<f64>,
+    /// Acceleration from the rebuilt velocity \[m/s²\].
+    pub a: Vec<f64>,
+    /// Standard deviation of the rebuilt velocity's error at each sample \[m/s\].
+    pub v_sigma: Vec<f64>,
+    /// Samples left out (a channel stuck, with a margin of 2 samples).
+    pub excluded: Vec<bool>,
+    /// The summary for the report.
+    pub summary: MeasurementSummary,
+}
+
+/// Shortest run of identical values reported as a flat stretch: 20 samples and 20 ms.
+fn min_flat(dt: f64) -> usize {
+    ((0.02 / dt).ceil() as usize).max(20)
+}
+
+fn flat_runs(t: &[f64], y: &[f64], channel: &str, min_len: usize) -> Vec<(usize, usize, FlatStretch)> {
+    let mut out = Vec::new();
+    let n = y.len();
+    let mut a = 0;
+    while a < n {
+        let mut b = a + 1;
+        while b < n && (y[b] - y[a]).abs() <= 1e-12 * (1.0 + y[a].abs()) {
+            b += 1;
+        }
+        if b - a >= min_len {
+            out.push((
+                a,
+                b,
+                FlatStretch {
+                    channel: channel.to_string(),
+                    start_s: t[a],
+                    end_s: t[b - 1],
+                    samples: b - a,
+                    value: y[a],
+                },
+            ));
+        }
+        a = b;
+    }
+    out
+}
+
+/// Local stroke period at every sample: twice the time between the velocity reversals
+/// (hysteresis ±5 % of the peak speed) around it; `typical` before the first and after
+/// the last reversal.
+fn local_periods(t: &[f64], v: &[f64], typical: f64) -> Vec<f64> {
+    let vpeak = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let thr = 0.05 * vpeak;
+    let mut state = 0i8;
+    let mut marks: Vec<usize> = Vec::new();
+    for (k, &x) in v.iter().enumerate() {
+        let s = if x > thr {
+            1
+        } else if x < -thr {
+            -1
+        } else {
+            0
+        };
+        if s != 0 && s != state {
+            if state != 0 {
+                marks.push(k);
+            }
+            state = s;
+        }
+    }
+    let mut out = vec![typical; t.len()];
+    for w in marks.windows(2) {
+        let p = (2.0 * (t[w[1]] - t[w[0]])).min(4.0 * typical);
+        for o in out.iter_mut().take(w[1]).skip(w[0]) {
+            *o = p;
+        }
+    }
+    out
+}
+
+/// Typical stroke period: twice the median time between velocity reversals (hysteresis
+/// ±5 % of the peak speed); the record's span when it has fewer than three reversals.
+fn stroke_period(t: &[f64], v: &[f64]) -> f64 {
+    let vpeak = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let thr = 0.05 * vpeak;
+    let mut state = 0i8;
+    let mut last: Option<f64> = None;
+    let mut gaps = Vec::new();
+    for (k, &x) in v.iter().enumerate() {
+        let s = if x > thr {
+            1
+        } else if x < -thr {
+            -1
+        } else {
+            0
+        };
+        if s != 0 && s != state {
+            if state != 0 {
+                if let Some(l) = last {
+                    gaps.push(t[k] - l);
+                }
+                last = Some(t[k]);
+            }
+            state = s;
+        }
+    }
+    let span = t[t.len() - 1] - t[0];
+    if gaps.len() < 2 {
+        span
+    } else {
+        (2.0 * median(gaps)).min(span)
+    }
+}
+
+/// Apply the measurement model. `h[j]` is the step to the previous sample (0 at a gap).
+pub fn measure(
+    t: &[f64],
+    x: &[f64],
+    v: &[f64],
+    f: &[f64],
+    h: &[f64],
+    velocity_derived: bool,
+) -> Measured {
+    let n = t.len();
+    let mut dts: Vec<f64> = h.iter().copied().filter(|d| *d > 0.0).collect();
+    let dt = if dts.is_empty() {
+        1e-3
+    } else {
+        let m = dts.len() / 2;
+        *dts.select_nth_unstable_by(m, f64::total_cmp).1
+    };
+    let mut runs = Vec::new();
+    let mut a = 0;
+    for j in 1..=n {
+        if j == n || h[j] == 0.0 {
+            runs.push((a, j));
+            a = j;
+        }
+    }
+    let period = stroke_period(t, v);
+    let half: Vec<usize> = local_periods(t, v, period)
+        .iter()
+        .map(|p| ((0.05 * p / dt).round() as usize).clamp(3, 400))
+        .collect();
+    let fx = local_cubic(t, x, &half, &runs);
+    let sx = noise_sigma(x, &fx);
+    let var_vx: Vec<f64> = fx.slope_gain.iter().map(|g| sx * sx * g).collect();
+    let (v_hat, sigma_v_raw) = if velocity_derived {
+        (fx.slope.clone(), None)
+    } else {
+        let fv = local_cubic(t, v, &half, &runs);
+        let sv = noise_sigma(v, &fv);
+        let fused = (0..n)
+            .map(|j| {
+                let vx = var_vx[j];
+                let vv = sv * sv * fv.leverage[j];
+                if vv <= 0.0 || !vx.is_finite() {
+                    return fv.value[j];
+                }
+                if vx <= 0.0 {
+                    return fx.slope[j];
+                }
+                (fx.slope[j] / vx + fv.value[j] / vv) / (1.0 / vx + 1.0 / vv)
+            })
+            .collect();
+        (fused, Some((sv, fv.leverage.clone())))
+    };
+    let v_sigma: Vec<f64> = {
+        (0..n)
+            .map(|j| {
+                let vx = var_vx[j];
+                let v_var = match &sigma_v_raw {
+                    Some((sv, lev)) => {
+                        let vv = sv * sv * lev[j];
+                        if vx.is_finite() && vx > 0.0 && vv > 0.0 {
+                            1.0 / (1.0 / vx + 1.0 / vv)
+                        } else if vv > 0.0 {
+                            vv
+                        } else {
+                            vx
+                        }
+                    }
+                    None => vx,
+                };
+                if v_var.is_finite() {
+                    v_var.max(0.0).sqrt()
+                } else {
+                    0.0
+                }
+            })
+            .collect()
+    };
+    let sigma_v_hat = median(v_sigma.clone());
+    let fa = local_cubic(t, &v_hat, &half, &runs);
+    let short = vec![3usize; n];
+    let ff = local_cubic(t, f, &short, &runs);
+    let force_noise = noise_sigma(f, &ff);
+    // Flat stretches of displacement, force and (when measured) velocity.
+    let min_len = min_flat(dt);
+    let mut flats = flat_runs(t, x, "displacement_m", min_len);
+    flats.extend(flat_runs(t, f, "force_N", min_len));
+    if !velocity_derived {
+        flats.extend(flat_runs(t, v, "velocity_m_s", min_len));
+    }
+    let mut excluded = vec![false; n];
+    for (a, b, _) in &flats {
+        for e in excluded
+            .iter_mut()
+            .take((*b + 2).min(n))
+            .skip(a.saturating_sub(2))
+        {
+            *e = true;
+        }
+    }
+    let excluded_samples = excluded.iter().filter(|e| **e).count();
+    let summary = MeasurementSummary {
+        sample_interval_s: dt,
+        stroke_period_s: period,
+        window_half_samples: median(half.iter().map(|h| *h as f64).collect()) as usize,
+        displacement_noise_m: sx,
+        velocity_noise_m_s: sigma_v_raw.as_ref().map(|s| s.0),
+        rebuilt_velocity_sigma_m_s: sigma_v_hat,
+        force_noise_hf_n: force_noise,
+        velocity_derived,
+        flat_stretches: flats.into_iter().map(|x| x.2).collect(),
+        excluded_samples,
+    };
+    Measured {
+        v: v_hat,
+        a: fa.slope,
+        v_sigma,
+        excluded,
+        summary,
+    }
+}
+
+/// The error function (Abramowitz & Stegun 7.1.26, |error| < 1.5e-7).
+pub fn erf(x: f64) -> f64 {
+    let s = x.signum();
+    let x = x.abs();
+    let t = 1.0 / (1.0 + 0.327_591_1 * x);
+    let y = 1.0
+        - (((((1.061_405_429 * t - 1.453_152_027) * t) + 1.421_413_741) * t - 0.284_496_736) * t
+            + 0.254_829_592)
+            * t
+            * (-x * x).exp();
+    s * y
+}
+
+/// Nodes and weights of 9-point Gauss–Hermite quadrature (probabilists' form: ∫ g(x) φ(x)
+/// dx ≈ Σ w_k g(x_k) for the standard normal density φ).
+const HERMITE9: [(f64, f64); 9] = [
+    (-4.512_745_863_399_783, 2.234_584_400_774_66e-5),
+    (-3.205_429_002_856_47, 2.789_141_321_231_77e-3),
+    (-2.076_847_978_677_83, 4.991_640_676_521_79e-2),
+    (-1.023_255_663_789_13, 2.440_975_028_949_39e-1),
+    (0.0, 4.063_492_063_492_06e-1),
+    (1.023_255_663_789_13, 2.440_975_028_949_39e-1),
+    (2.076_847_978_677_83, 4.991_640_676_521_79e-2),
+    (3.205_429_002_856_47, 2.789_141_321_231_77e-3),
+    (4.512_745_863_399_783, 2.234_584_400_774_66e-5),
+];
+
+/// Variance of `g(v + e)`, e ~ N(0, σ²): how much of the force is unpredictable because
+/// the velocity is (Gauss–Hermite quadrature; exact where g is smooth, a smoothed jump
+/// otherwise).
+pub fn variance_under_velocity_error(g: impl Fn(f64) -> f64, v: f64, sigma: f64) -> f64 {
+    if sigma <= 0.0 {
+        return 0.0;
+    }
+    let (mut m1, mut m2) = (0.0, 0.0);
+    for (x, w) in HERMITE9 {
+        let y = g(v + sigma * x);
+        m1 += w * y;
+        m2 += w * y * y;
+    }
+    (m2 - m1 * m1).max(0.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+
+    #[test]
+    fn noise_levels_and_velocity_error_are_recovered() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+        let nx = Normal::new(0.0, 5e-6).unwrap();
+        let nv = Normal::new(0.0, 2e-3).unwrap();
+        let nf = Normal::new(0.0, 10.0).unwrap();
+        let dt = 1e-3;
+        let w = 2.0 * std::f64::consts::PI * 2.0;
+        let n = 8000;
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * dt).collect();
+        let xt: Vec<f64> = t.iter().map(|t| 0.01 * (w * t).sin()).collect();
+        let vt: Vec<f64> = t.iter().map(|t| 0.01 * w * (w * t).cos()).collect();
+        let x: Vec<f64> = xt.iter().map(|x| x + nx.sample(&mut rng)).collect();
+        let v: Vec<f64> = vt.iter().map(|v| v + nv.sample(&mut rng)).collect();
+        let f: Vec<f64> = vt
+            .iter()
+            .map(|v| 500.0 * v.signum() + 2000.0 * v + nf.sample(&mut rng))
+            .collect();
+        let mut h = vec![dt; n];
+        h[0] = 0.0;
+        let m = measure(&t, &x, &v, &f, &h, false);
+        let s = &m.summary;
+        assert!((s.displacement_noise_m / 5e-6 - 1.0).abs() < 0.1, "{s:?}");
+        let sv = s.velocity_noise_m_s.unwrap();
+        assert!((sv / 2e-3 - 1.0).abs() < 0.1, "{s:?}");
+        // The force jump at reversals does not inflate the robust force-noise estimate much.
+        assert!((s.force_noise_hf_n / 10.0 - 1.0).abs() < 0.15, "{s:?}");
+        // The stated σ of the rebuilt velocity matches its actual error within 25 %.
+        let err: f64 = (100..n - 100)
+            .map(|j| (m.v[j] - vt[j]).powi(2))
+            .sum::<f64>()
+            / (n - 200) as f64;
+        let ratio = err.sqrt() / s.rebuilt_velocity_sigma_m_s;
+        assert!((0.75..1.25).contains(&ratio), "actual/stated {ratio}, {s:?}");
+        assert!(err.sqrt() < 0.5 * sv, "rebuilding must beat the raw channel");
+        assert!((s.stroke_period_s - 0.5).abs() < 0.01);
+        assert_eq!(s.excluded_samples, 0);
+    }
+
+    #[test]
+    fn erf_and_the_variance_of_a_jump_under_velocity_error() {
+        assert!((erf(0.5) - 0.520_499_877_8).abs() < 2e-7);
+        assert!((erf(-1.5) + 0.966_105_146_5).abs() < 2e-7);
+        // Var of a smooth line: slope² σ².
+        let v = variance_under_velocity_error(|x| 3.0 * x, 0.2, 0.1);
+        assert!((v - 0.09).abs() < 1e-9);
+        // A jump ±1 at v = 0 far from the sample: no variance; at the jump: about 1.
+        assert!(variance_under_velocity_error(f64::signum, 10.0, 1.0) < 1e-6);
+        assert!(variance_under_velocity_error(f64::signum, 0.0, 1.0) > 0.5);
+    }
+
+    #[test]
+    fn a_clipped_force_channel_is_found_and_left_out() {
+        let n = 3000;
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * 1e-3).collect();
+        let x: Vec<f64> = t.iter().map(|t| 0.01 * (6.0 * t).sin()).collect();
+        let v: Vec<f64> = t.iter().map(|t| 0.06 * (6.0 * t).cos()).collect();
+        let mut f: Vec<f64> = v.iter().map(|v| 1e4 * v).collect();
+        for y in f.iter_mut().skip(2927) {
+            *y = 4545.4545;
+        }
+        let mut h = vec![1e-3; n];
+        h[0] = 0.0;
+        let m = measure(&t, &x, &v, &f, &h, false);
+        let fl = &m.summary.flat_stretches;
+        assert_eq!(fl.len(), 1, "{fl:?}");
+        assert_eq!(fl[0].channel, "force_N");
+        assert_eq!(fl[0].samples, 73);
+        assert!((fl[0].start_s - 2.927).abs() < 1e-9);
+        assert!(m.excluded[2926] && m.excluded[2999] && !m.excluded[2900]);
+    }
+}
