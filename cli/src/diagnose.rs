@@ -64,11 +64,9 @@ fn progress_bar(p: Progress) {
         return;
     }
     let width = 30usize;
-    let filled = if p.total == 0 {
-        width
-    } else {
-        (width * p.done / p.total).min(width)
-    };
+    let filled = (width * p.done)
+        .checked_div(p.total)
+        .map_or(width, |f| f.min(width));
     let _ = write!(
         err,
         "\r\x1b[2K  round {} {:<20} [{}{}] {}/{}",
@@ -113,10 +111,16 @@ pub fn run(args: &DiagnoseArgs) -> Result<()> {
     let rec = load_input(&args.input)?;
     let name = args.input.display().to_string();
     if !(args.family_alpha > 0.0 && args.family_alpha < 1.0) {
-        bail!("--family-alpha {} is not a rate in (0, 1)", args.family_alpha);
+        bail!(
+            "--family-alpha {} is not a rate in (0, 1)",
+            args.family_alpha
+        );
     }
     if args.replicates < 8 {
-        bail!("--replicates {}: the calibration needs at least 8", args.replicates);
+        bail!(
+            "--replicates {}: the calibration needs at least 8",
+            args.replicates
+        );
     }
     let opts = Options {
         selector: args.selector,
@@ -204,9 +208,130 @@ fn chosen_strokes(d: &Prepared, base: &[f64]) -> Vec<(f64, Vec<usize>)> {
     out
 }
 
-fn loop_figure(dg: &Diagnosis, x_of: impl Fn(usize) -> f64, x_label: &str) -> Figure {
+/// Loops averaged by bin, for any excitation (broadband strokes, currents switched within
+/// strokes): the held-out samples of each current band (lower, middle and upper third of
+/// the current range) are binned by `x_of` (24 bins) separately for increasing and
+/// decreasing `x_of` (so the loop keeps its opening), and the mean measured, baseline and
+/// final force of each bin drawn as one closed path.
+fn binned_panels(
+    dg: &Diagnosis,
+    x_of: &dyn Fn(usize) -> f64,
+    rising: &dyn Fn(usize) -> bool,
+) -> Vec<Panel> {
     let d = &dg.data;
-    let panels = chosen_strokes(d, &dg.baseline_force)
+    let held: Vec<usize> = (0..d.len()).filter(|&j| d.holdout[j]).collect();
+    if held.is_empty() {
+        return Vec::new();
+    }
+    let (ilo, ihi) = held
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &j| {
+            (a.min(d.i[j]), b.max(d.i[j]))
+        });
+    let bands = if ihi - ilo > 1e-6 { 3 } else { 1 };
+    let band_of = |i: f64| {
+        if bands == 1 {
+            0
+        } else {
+            (((i - ilo) / (ihi - ilo) * 3.0) as usize).min(2)
+        }
+    };
+    const BINS: usize = 24;
+    let mut panels = Vec::new();
+    for b in 0..bands {
+        let sel: Vec<usize> = held
+            .iter()
+            .copied()
+            .filter(|&j| band_of(d.i[j]) == b)
+            .collect();
+        if sel.len() < 4 * BINS {
+            continue;
+        }
+        let (xlo, xhi) = sel
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, c), &j| {
+                (a.min(x_of(j)), c.max(x_of(j)))
+            });
+        let width = ((xhi - xlo) / BINS as f64).max(1e-12);
+        let path = |y: &dyn Fn(usize) -> f64| {
+            let mut acc = vec![[(0.0, 0.0, 0usize); BINS]; 2];
+            for &j in &sel {
+                let k = (((x_of(j) - xlo) / width) as usize).min(BINS - 1);
+                let a = &mut acc[usize::from(!rising(j))][k];
+                a.0 += x_of(j);
+                a.1 += y(j);
+                a.2 += 1;
+            }
+            let mut pts: Vec<(f64, f64)> = acc[0]
+                .iter()
+                .filter(|a| a.2 >= 3)
+                .map(|a| (a.0 / a.2 as f64, a.1 / a.2 as f64))
+                .collect();
+            pts.extend(
+                acc[1]
+                    .iter()
+                    .rev()
+                    .filter(|a| a.2 >= 3)
+                    .map(|a| (a.0 / a.2 as f64, a.1 / a.2 as f64)),
+            );
+            if let Some(&p) = pts.first() {
+                pts.push(p);
+            }
+            pts
+        };
+        let lo_i = sel.iter().map(|&j| d.i[j]).fold(f64::INFINITY, f64::min);
+        let hi_i = sel
+            .iter()
+            .map(|&j| d.i[j])
+            .fold(f64::NEG_INFINITY, f64::max);
+        panels.push(Panel {
+            title: format!("held-out, {lo_i:.2}–{hi_i:.2} A, mean per bin"),
+            series: vec![
+                Series {
+                    label: "measured".into(),
+                    colour: PALETTE[0],
+                    points: path(&|j| d.f[j]),
+                    dashed: false,
+                },
+                Series {
+                    label: "baseline".into(),
+                    colour: PALETTE[1],
+                    points: path(&|j| dg.baseline_force[j]),
+                    dashed: true,
+                },
+                Series {
+                    label: "final model".into(),
+                    colour: PALETTE[2],
+                    points: path(&|j| dg.final_force[j]),
+                    dashed: false,
+                },
+            ],
+            legend: None,
+        });
+    }
+    panels
+}
+
+fn loop_figure(
+    dg: &Diagnosis,
+    x_of: impl Fn(usize) -> f64,
+    rising: impl Fn(usize) -> bool,
+    x_label: &str,
+) -> Figure {
+    let d = &dg.data;
+    let strokes = if d.held_levels {
+        chosen_strokes(d, &dg.baseline_force)
+    } else {
+        Vec::new()
+    };
+    if strokes.is_empty() {
+        return Figure {
+            x_label: x_label.into(),
+            y_label: "force (N)".into(),
+            panels: binned_panels(dg, &x_of, &rising),
+        };
+    }
+    let panels = strokes
         .into_iter()
         .map(|(i, s)| Panel {
             title: format!("held-out stroke at {i:.2} A"),
@@ -244,11 +369,11 @@ fn plots(dg: &Diagnosis, dir: &Path) -> Result<()> {
     let d = &dg.data;
     write_svg(
         &dir.join("loops_force_velocity.svg"),
-        &loop_figure(dg, |j| d.v[j], "velocity (m/s)"),
+        &loop_figure(dg, |j| d.v[j], |j| d.a[j] >= 0.0, "velocity (m/s)"),
     )?;
     write_svg(
         &dir.join("loops_force_displacement.svg"),
-        &loop_figure(dg, |j| 1e3 * d.x[j], "displacement (mm)"),
+        &loop_figure(dg, |j| 1e3 * d.x[j], |j| d.v[j] >= 0.0, "displacement (mm)"),
     )?;
     // Residual by stroke phase: 1 near reversal, 2 accelerating, 3 decelerating,
     // 4 compression, 5 rebound.

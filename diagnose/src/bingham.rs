@@ -144,13 +144,7 @@ pub fn flow_velocity_leaky(f: f64, fy: f64, c: f64, veps: f64) -> (f64, f64, f64
         return leak;
     }
     let (w, dwf, dwfy, dwc) = flow_velocity(f, fy, c);
-    (
-        w + leak.0,
-        dwf + leak.1,
-        dwfy + leak.2,
-        dwc,
-        leak.4,
-    )
+    (w + leak.0, dwf + leak.1, dwfy + leak.2, dwc, leak.4)
 }
 
 #[cfg(test)]
@@ -220,7 +214,10 @@ mod tests {
             let nc = fd(&|x| force_leaky(v, fy, x, veps).0, c);
             let ne = fd(&|x| force_leaky(v, fy, c, x).0, veps);
             for (a, b) in [(dfy, nfy), (dc, nc), (de, ne)] {
-                assert!((a - b).abs() <= 1e-5 * (a.abs() + b.abs()).max(1e-6), "{v}: {a} vs {b}");
+                assert!(
+                    (a - b).abs() <= 1e-5 * (a.abs() + b.abs()).max(1e-6),
+                    "{v}: {a} vs {b}"
+                );
             }
             // ∂w/∂F is the reciprocal of ∂F/∂v.
             let dfdv = fd(&|x| force_leaky(x, fy, c, veps).0, v);

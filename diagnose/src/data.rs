@@ -92,6 +92,9 @@ pub struct Prepared {
     pub h: Vec<f64>,
     /// Current knots (the distinct current levels, or a grid when there are many).
     pub knots: Vec<f64>,
+    /// `true` when the knots are the record's own held levels (at most 12 distinct
+    /// currents), `false` when the current varies continuously and the knots are a grid.
+    pub held_levels: bool,
     /// Stroke (cycle) index of each sample.
     pub cycle: Vec<usize>,
     /// Number of strokes.
@@ -187,33 +190,38 @@ fn steps(t: &[f64]) -> Vec<f64> {
     h
 }
 
-/// Current knots: the distinct levels (closer than 2 % of the largest current merged),
-/// or 8 knots evenly spread when there are more than 12 levels.
+/// Current knots: the held levels — clusters of currents within 2 % of the largest
+/// current that hold at least 1 % of the samples each (transitions between levels and
+/// noise on the channel make no level of their own) — when there are at most 12 of them
+/// and they hold at least 90 % of the samples; otherwise 8 knots evenly spread over the
+/// range (a continuously varying current).
 fn current_knots(i: &[f64]) -> Vec<f64> {
     let tol = level_tolerance(i);
-    let mut levels: Vec<f64> = Vec::new();
-    for &c in i {
-        if !levels.iter().any(|l| (l - c).abs() <= tol) {
-            levels.push(c);
-            if levels.len() > 12 {
-                break;
-            }
+    let mut sorted = i.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let n = sorted.len();
+    let min_count = (n / 100).max(20);
+    let mut levels = Vec::new();
+    let mut covered = 0usize;
+    let mut a = 0;
+    while a < n {
+        let mut b = a + 1;
+        while b < n && sorted[b] - sorted[b - 1] <= tol && sorted[b] - sorted[a] <= 2.0 * tol {
+            b += 1;
         }
+        if b - a >= min_count {
+            levels.push(sorted[a..b].iter().sum::<f64>() / (b - a) as f64);
+            covered += b - a;
+        }
+        a = b;
     }
-    if levels.len() <= 12 {
-        // Snap each level to the mean of the samples near it.
-        let mut k: Vec<f64> = levels
-            .iter()
-            .map(|l| {
-                let near: Vec<f64> = i.iter().copied().filter(|c| (c - l).abs() <= tol).collect();
-                near.iter().sum::<f64>() / near.len() as f64
-            })
-            .collect();
-        k.sort_by(f64::total_cmp);
-        k
+    if !levels.is_empty() && levels.len() <= 12 && covered as f64 >= 0.9 * n as f64 {
+        levels
     } else {
-        let lo = i.iter().copied().fold(f64::INFINITY, f64::min);
-        let hi = i.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let (lo, hi) = (sorted[0], sorted[n - 1]);
+        if hi - lo <= tol {
+            return vec![0.5 * (lo + hi)];
+        }
         (0..8).map(|j| lo + (hi - lo) * j as f64 / 7.0).collect()
     }
 }
@@ -252,7 +260,13 @@ fn strokes(v: &[f64], h: &[f64], vpeak: f64) -> (Vec<usize>, usize) {
 
 /// Segments: a new one at a current step, a time gap, or where the stroke period changes
 /// by more than 20 %.
-fn segments(t: &[f64], i: &[f64], h: &[f64], cycle: &[usize], cycles: usize) -> (Vec<usize>, usize) {
+fn segments(
+    t: &[f64],
+    i: &[f64],
+    h: &[f64],
+    cycle: &[usize],
+    cycles: usize,
+) -> (Vec<usize>, usize) {
     let n = t.len();
     let tol = level_tolerance(i);
     let mut cycle_start = vec![0usize; cycles];
@@ -322,8 +336,7 @@ fn validation_blocks(
         let k = ((d / target).floor() as usize).clamp(2, most.max(2));
         k - k % 2
     };
-    let per_segment =
-        segments <= 8 && seg_range.iter().all(|&(a, b)| dur(a, b) >= 2.0 * period);
+    let per_segment = segments <= 8 && seg_range.iter().all(|&(a, b)| dur(a, b) >= 2.0 * period);
     let mut block = vec![0usize; n];
     let mut next = 0usize;
     let method;
@@ -384,6 +397,14 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
         energy_kj[k] = energy_kj[k - 1] + h[k] * p.max(0.0) * 1e-3;
     }
     let knots = current_knots(&i);
+    let held_levels = {
+        let tol = level_tolerance(&i);
+        let on = i
+            .iter()
+            .filter(|c| knots.iter().any(|k| (k - *c).abs() <= tol))
+            .count();
+        knots.len() <= 12 && on as f64 >= 0.9 * i.len() as f64
+    };
     let (cycle, cycles) = strokes(&v, &h, vpeak);
     let mut stroke_peak = vec![0.0f64; cycles];
     for k in 0..n {
@@ -414,8 +435,7 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
     }
     let holdout: Vec<bool> = (0..n).map(|j| block[j] % 2 == 1 && !excluded[j]).collect();
     let train: Vec<bool> = (0..n).map(|j| block[j] % 2 == 0 && !excluded[j]).collect();
-    let leak_velocity_min =
-        crate::measure::LEAK_PER_SIGMA * m.summary.rebuilt_velocity_sigma_m_s;
+    let leak_velocity_min = crate::measure::LEAK_PER_SIGMA * m.summary.rebuilt_velocity_sigma_m_s;
     let friction_velocity = (0.01 * vpeak).max(leak_velocity_min);
     Ok(Prepared {
         t,
@@ -429,6 +449,7 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
         f,
         energy_kj,
         h,
+        held_levels,
         knots,
         cycle,
         cycles,

@@ -21,7 +21,9 @@ pub mod stats;
 pub mod study;
 pub mod unexplained;
 
+pub use calibrate::Calibration;
 pub use data::{DataError, Signals};
 pub use report::Report;
-pub use calibrate::Calibration;
-pub use select::{diagnose, diagnose_with_progress, Diagnosis, Options, Progress, Selector, Thresholds};
+pub use select::{
+    diagnose, diagnose_with_progress, Diagnosis, Options, Progress, Selector, Thresholds,
+};

@@ -135,7 +135,7 @@ pub struct FlatStretch {
 pub struct MeasurementSummary {
     /// Median sample interval \[s\].
     pub sample_interval_s: f64,
-    /// Typical stroke period (twice the median time between velocity reversals) \[s\].
+    /// Typical stroke period (twice the median time between displacement reversals) \[s\].
     pub stroke_period_s: f64,
     /// Median half-width of the local cubic window \[samples\] (5 % of the local stroke
     /// period, 3–400 samples).
@@ -176,7 +176,12 @@ fn min_flat(dt: f64) -> usize {
     ((0.02 / dt).ceil() as usize).max(20)
 }
 
-fn flat_runs(t: &[f64], y: &[f64], channel: &str, min_len: usize) -> Vec<(usize, usize, FlatStretch)> {
+fn flat_runs(
+    t: &[f64],
+    y: &[f64],
+    channel: &str,
+    min_len: usize,
+) -> Vec<(usize, usize, FlatStretch)> {
     let mut out = Vec::new();
     let n = y.len();
     let mut a = 0;
@@ -203,29 +208,43 @@ fn flat_runs(t: &[f64], y: &[f64], channel: &str, min_len: usize) -> Vec<(usize,
     out
 }
 
-/// Local stroke period at every sample: twice the time between the velocity reversals
-/// (hysteresis ±5 % of the peak speed) around it; `typical` before the first and after
-/// the last reversal.
-fn local_periods(t: &[f64], v: &[f64], typical: f64) -> Vec<f64> {
-    let vpeak = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    let thr = 0.05 * vpeak;
-    let mut state = 0i8;
-    let mut marks: Vec<usize> = Vec::new();
-    for (k, &x) in v.iter().enumerate() {
-        let s = if x > thr {
-            1
-        } else if x < -thr {
-            -1
-        } else {
-            0
-        };
-        if s != 0 && s != state {
-            if state != 0 {
-                marks.push(k);
+/// Stroke reversals: the extrema of the displacement, found with a hysteresis of 2 % of
+/// its range (the displacement is the cleanest channel; a noisy velocity would cross zero
+/// many times at each reversal).
+fn reversals(x: &[f64]) -> Vec<usize> {
+    let lo = x.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = x.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let hyst = 0.02 * (hi - lo);
+    let mut marks = Vec::new();
+    let (mut max_k, mut min_k) = (0usize, 0usize);
+    let mut dir = 0i8;
+    for k in 1..x.len() {
+        if x[k] > x[max_k] {
+            max_k = k;
+        }
+        if x[k] < x[min_k] {
+            min_k = k;
+        }
+        if dir >= 0 && x[max_k] - x[k] > hyst {
+            if dir > 0 {
+                marks.push(max_k);
             }
-            state = s;
+            dir = -1;
+            min_k = k;
+        } else if dir <= 0 && x[k] - x[min_k] > hyst {
+            if dir < 0 {
+                marks.push(min_k);
+            }
+            dir = 1;
+            max_k = k;
         }
     }
+    marks
+}
+
+/// Local stroke period at every sample: twice the time between the displacement reversals
+/// around it; `typical` before the first and after the last reversal.
+fn local_periods(t: &[f64], marks: &[usize], typical: f64) -> Vec<f64> {
     let mut out = vec![typical; t.len()];
     for w in marks.windows(2) {
         let p = (2.0 * (t[w[1]] - t[w[0]])).min(4.0 * typical);
@@ -236,33 +255,11 @@ fn local_periods(t: &[f64], v: &[f64], typical: f64) -> Vec<f64> {
     out
 }
 
-/// Typical stroke period: twice the median time between velocity reversals (hysteresis
-/// ±5 % of the peak speed); the record's span when it has fewer than three reversals.
-fn stroke_period(t: &[f64], v: &[f64]) -> f64 {
-    let vpeak = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    let thr = 0.05 * vpeak;
-    let mut state = 0i8;
-    let mut last: Option<f64> = None;
-    let mut gaps = Vec::new();
-    for (k, &x) in v.iter().enumerate() {
-        let s = if x > thr {
-            1
-        } else if x < -thr {
-            -1
-        } else {
-            0
-        };
-        if s != 0 && s != state {
-            if state != 0 {
-                if let Some(l) = last {
-                    gaps.push(t[k] - l);
-                }
-                last = Some(t[k]);
-            }
-            state = s;
-        }
-    }
+/// Typical stroke period: twice the median time between displacement reversals; the
+/// record's span when it has fewer than three reversals.
+fn stroke_period(t: &[f64], marks: &[usize]) -> f64 {
     let span = t[t.len() - 1] - t[0];
+    let gaps: Vec<f64> = marks.windows(2).map(|w| t[w[1]] - t[w[0]]).collect();
     if gaps.len() < 2 {
         span
     } else {
@@ -271,6 +268,8 @@ fn stroke_period(t: &[f64], v: &[f64]) -> f64 {
 }
 
 /// Apply the measurement model. `h[j]` is the step to the previous sample (0 at a gap).
+// Several per-sample arrays are read with one index: a range loop is clearer.
+#[allow(clippy::needless_range_loop)]
 pub fn measure(
     t: &[f64],
     x: &[f64],
@@ -295,8 +294,9 @@ pub fn measure(
             a = j;
         }
     }
-    let period = stroke_period(t, v);
-    let half: Vec<usize> = local_periods(t, v, period)
+    let marks = reversals(x);
+    let period = stroke_period(t, &marks);
+    let half: Vec<usize> = local_periods(t, &marks, period)
         .iter()
         .map(|p| ((0.05 * p / dt).round() as usize).clamp(3, 400))
         .collect();
@@ -474,8 +474,14 @@ mod tests {
             .sum::<f64>()
             / (n - 200) as f64;
         let ratio = err.sqrt() / s.rebuilt_velocity_sigma_m_s;
-        assert!((0.75..1.25).contains(&ratio), "actual/stated {ratio}, {s:?}");
-        assert!(err.sqrt() < 0.5 * sv, "rebuilding must beat the raw channel");
+        assert!(
+            (0.75..1.25).contains(&ratio),
+            "actual/stated {ratio}, {s:?}"
+        );
+        assert!(
+            err.sqrt() < 0.5 * sv,
+            "rebuilding must beat the raw channel"
+        );
         assert!((s.stroke_period_s - 0.5).abs() < 0.01);
         assert_eq!(s.excluded_samples, 0);
     }

@@ -113,8 +113,10 @@ pub fn sample_leak(leak: f64, v_sigma: f64) -> f64 {
     (leak * leak + m * m).sqrt()
 }
 
-/// Parameters of the baseline besides the knots: force offset and leak velocity.
-pub const BASE_EXTRA: usize = 2;
+/// Parameters of the baseline besides the knots: force offset, absolute leak velocity and
+/// relative leak (leak velocity per yield velocity F_y/c: a bi-viscous fluid's inverse
+/// viscosity ratio).
+pub const BASE_EXTRA: usize = 3;
 
 impl Layout {
     /// Index of the force-sensor offset \[N\].
@@ -125,7 +127,11 @@ impl Layout {
     pub fn leak_index(&self) -> usize {
         2 * self.nk + 1
     }
-    /// Number of baseline parameters (knots, offset, leak).
+    /// Index of the relative leak (per yield velocity F_y/c) \[1\].
+    pub fn leak_rel_index(&self) -> usize {
+        2 * self.nk + 2
+    }
+    /// Number of baseline parameters (knots, offset, leaks).
     pub fn base_len(&self) -> usize {
         2 * self.nk + BASE_EXTRA
     }
@@ -232,8 +238,11 @@ pub fn evaluate(d: &Prepared, lay: &Layout, theta: &[f64], jac: bool) -> Evaluat
     let icp = lay.index(Effect::FluidCompressibility);
     let ioff = lay.offset_index();
     let ileak = lay.leak_index();
-    // The fluid's own pre-yield leak; each sample adds its velocity error in quadrature.
+    // The fluid's own pre-yield leak (absolute, and relative to the yield velocity F_y/c);
+    // each sample adds its velocity error in quadrature.
     let leak = theta[ileak].max(0.0);
+    let ilr = lay.leak_rel_index();
+    let leak_rel = theta[ilr].max(0.0);
     let tau = ilag.map(|k| theta[k].max(0.0)).unwrap_or(0.0);
     let comp = icp.map(|k| theta[k].max(0.0)).unwrap_or(0.0);
     let mut i_eff = d.i[0];
@@ -247,8 +256,6 @@ pub fn evaluate(d: &Prepared, lay: &Layout, theta: &[f64], jac: bool) -> Evaluat
     let mut gc: Vec<(usize, f64)> = Vec::with_capacity(4);
     for j in 0..n {
         let h = d.h[j];
-        let veps = sample_leak(leak, d.v_sigma[j]);
-        let dveps = if veps > 0.0 { leak / veps } else { 0.0 };
         // Effective current.
         if ilag.is_some() && h > 0.0 && tau > 0.0 {
             let e = (-h / tau).exp();
@@ -273,6 +280,18 @@ pub fn evaluate(d: &Prepared, lay: &Layout, theta: &[f64], jac: bool) -> Evaluat
         };
         let fy = (scale * fy_raw).max(FY_MIN);
         let c = (scale * c_raw).max(C_MIN);
+        let yv = fy / c;
+        let veps = (sample_leak(leak, d.v_sigma[j]).powi(2) + (leak_rel * yv).powi(2)).sqrt();
+        let (dve_la, dve_lr, dve_fy, dve_c) = if veps > 0.0 {
+            (
+                leak / veps,
+                leak_rel * yv * yv / veps,
+                leak_rel * leak_rel * yv / (c * veps),
+                -leak_rel * leak_rel * yv * yv / (c * veps),
+            )
+        } else {
+            (0.0, 0.0, 0.0, 0.0)
+        };
         if jac {
             gfy.clear();
             gc.clear();
@@ -296,6 +315,7 @@ pub fn evaluate(d: &Prepared, lay: &Layout, theta: &[f64], jac: bool) -> Evaluat
         // Fluid force.
         let fluid = if icp.is_some() && comp > 0.0 && h > 0.0 && j > 0 {
             let (f_new, dwf, dwfy, dwc, dwe) = solve_compliance(fl_prev, v, h, comp, fy, c, veps);
+            let (dwfy, dwc) = (dwfy + dwe * dve_fy, dwc + dwe * dve_c);
             if jac {
                 let den = comp + h * dwf;
                 for q in 0..p {
@@ -307,7 +327,8 @@ pub fn evaluate(d: &Prepared, lay: &Layout, theta: &[f64], jac: bool) -> Evaluat
                 for &(q, g) in &gc {
                     s_new[q] -= h * dwc * g;
                 }
-                s_new[ileak] -= h * dwe * dveps;
+                s_new[ileak] -= h * dwe * dve_la;
+                s_new[ilr] -= h * dwe * dve_lr;
                 if let Some(ci) = icp {
                     s_new[ci] -= f_new - fl_prev;
                 }
@@ -320,6 +341,7 @@ pub fn evaluate(d: &Prepared, lay: &Layout, theta: &[f64], jac: bool) -> Evaluat
             f_new
         } else {
             let (f0, dfy, dc, de) = bingham::force_leaky(v, fy, c, veps);
+            let (dfy, dc) = (dfy + de * dve_fy, dc + de * dve_c);
             if jac {
                 for &(q, g) in &gfy {
                     jm[row + q] += dfy * g;
@@ -327,7 +349,8 @@ pub fn evaluate(d: &Prepared, lay: &Layout, theta: &[f64], jac: bool) -> Evaluat
                 for &(q, g) in &gc {
                     jm[row + q] += dc * g;
                 }
-                jm[row + ileak] += de * dveps;
+                jm[row + ileak] += de * dve_la;
+                jm[row + ilr] += de * dve_lr;
                 if icp.is_some() {
                     s_prev[..p].copy_from_slice(&jm[row..row + p]);
                 }
@@ -465,6 +488,8 @@ fn clamp_bounds(d: &Prepared, lay: &Layout, theta: &mut [f64]) {
     let vmax = d.stroke_speed.iter().fold(0.0f64, |m, x| m.max(*x));
     let k = lay.leak_index();
     theta[k] = theta[k].clamp(0.0, 0.25 * vmax);
+    let k = lay.leak_rel_index();
+    theta[k] = theta[k].clamp(0.0, 0.5);
     for e in [
         Effect::FieldLag,
         Effect::FluidCompressibility,
@@ -498,6 +523,7 @@ pub fn predictive_weights(d: &Prepared, base: &Fit) -> Vec<f64> {
     let th = &base.theta;
     let nk = lay.nk;
     let leak = th[lay.leak_index()].max(0.0);
+    let leak_rel = th[lay.leak_rel_index()].max(0.0);
     let mut dev: Vec<f64> = (0..d.len())
         .filter(|&j| !d.excluded[j] && d.v[j].abs() > 4.0 * d.v_sigma[j])
         .map(|j| (d.f[j] - base.force[j]).abs())
@@ -515,7 +541,7 @@ pub fn predictive_weights(d: &Prepared, base: &Fit) -> Vec<f64> {
             let fy = ((1.0 - lam) * th[k] + lam * th[k2]).max(FY_MIN);
             let c = ((1.0 - lam) * th[nk + k] + lam * th[nk + k2]).max(C_MIN);
             let var = crate::measure::variance_under_velocity_error(
-                |v| bingham::force_leaky(v, fy, c, leak).0,
+                |v| bingham::force_leaky(v, fy, c, leak.hypot(leak_rel * fy / c)).0,
                 d.v[j],
                 d.v_sigma[j],
             );
@@ -578,7 +604,14 @@ pub fn fit_limited(d: &Prepared, lay: &Layout, theta0: &[f64], max_iter: usize) 
     let rho1 = crate::stats::autocorr(&r, 1);
     let m = r.len();
     let n_eff = crate::stats::effective_n(m, rho1);
-    let (jtj, _) = normal_equations(d, &ev, p);
+    let (mut jtj, _) = normal_equations(d, &ev, p);
+    // A parameter the data do not move (a leak at zero on noise-free velocity) has a zero
+    // column: decouple it so the others keep their errors.
+    for q in 0..p {
+        if jtj[(q, q)] <= 1e-300 {
+            jtj[(q, q)] = 1.0;
+        }
+    }
     let sigma2 = sse / (m as f64 - p as f64).max(1.0);
     let inflate = m as f64 / n_eff;
     let se = match jtj.clone().try_inverse() {
@@ -707,7 +740,9 @@ mod tests {
             nk: d.knots.len(),
             effects: Effect::ALL.to_vec(),
         };
-        let mut theta = vec![250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 12.0, 0.004];
+        let mut theta = vec![
+            250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 12.0, 0.004, 0.05,
+        ];
         // compressibility 0.05 mm/kN, gas, friction, thermal, lag 8 ms, inertia (ALL order)
         theta.extend([5e-8, 800.0, 15.0, 0.05, 0.008, 0.5]);
         assert_eq!(theta.len(), lay.len());
@@ -742,7 +777,7 @@ mod tests {
             nk: d.knots.len(),
             effects: vec![],
         };
-        let th = vec![250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 0.0, 0.004];
+        let th = vec![250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 0.0, 0.004, 0.0];
         let f0 = evaluate(&d, &base, &th, false).force;
         let lay = base.with(Effect::FluidCompressibility);
         let mut tc = th.clone();
@@ -755,7 +790,7 @@ mod tests {
             .fold(0.0, f64::max);
         assert!(worst < 1.0, "largest difference {worst} N");
         // A stiff chamber lags: with a large compliance the force after reversal is lower.
-        tc[8] = 2e-7;
+        tc[9] = 2e-7;
         let f2 = evaluate(&d, &lay, &tc, false).force;
         let diff: f64 = f0.iter().zip(&f2).map(|(a, b)| (a - b).powi(2)).sum();
         assert!(diff > 1e3);

@@ -15,6 +15,9 @@ pub struct ModelSummary {
     /// RMS residual on the held-out part \[N\].
     #[serde(rename = "holdout_rmse_N")]
     pub holdout_rmse_n: f64,
+    /// Held-out RMS with every sample counted alike \[N\].
+    #[serde(rename = "holdout_rmse_unweighted_N")]
+    pub holdout_rmse_unweighted_n: f64,
     /// Number of parameters.
     pub parameters: usize,
 }
@@ -308,22 +311,40 @@ pub fn render_markdown(r: &Report) -> String {
     }
     for f in &r.findings {
         let e = &f.evidence;
+        let why = match &e.calibration {
+            Some(c) => format!(
+                "beats its bootstrap null: statistic {:.1} against {:.1} at α = {:.1e} \
+                 ({} replicates)",
+                c.statistic, c.threshold, c.alpha, c.replicates
+            ),
+            None => format!(
+                "paired z {:.1} over held-out blocks, ΔBIC {:.1} (n_eff {:.0}), residual \
+                 structure in \"{}\" down {:.0} %",
+                e.holdout_z,
+                e.delta_bic,
+                e.effective_samples,
+                e.structure_region,
+                100.0 * e.structure_drop
+            ),
+        };
+        let better = f
+            .block_gains
+            .iter()
+            .filter(|b| b.rmse_after_n < b.rmse_before_n)
+            .count();
         let _ = writeln!(
             s,
-            "- **{}** — {}. Parameters: {}. Held-out RMS {:.2} → {:.2} N \
-             ({:.1} % lower, paired z {:.1} over held-out strokes), ΔBIC {:.1} (n_eff {:.0}), \
-             residual structure in \"{}\" down {:.0} %.",
+            "- **{}** — {}. Parameters: {}. Held-out RMS {:.2} → {:.2} N ({:.1} % lower; \
+             better in {} of {} held-out blocks); {}.",
             f.effect,
             f.explanation,
             fmt_params(&f.parameters),
             e.holdout_rmse_before_n,
             e.holdout_rmse_after_n,
             100.0 * (1.0 - e.holdout_rmse_after_n / e.holdout_rmse_before_n),
-            e.holdout_z,
-            e.delta_bic,
-            e.effective_samples,
-            e.structure_region,
-            100.0 * e.structure_drop
+            better,
+            f.block_gains.len(),
+            why
         );
     }
     for u in &r.undecided {
@@ -454,6 +475,19 @@ pub fn render_markdown(r: &Report) -> String {
         );
     }
     let _ = writeln!(s, "\n## Every candidate tried\n");
+    if r.selector == "calibrated" {
+        let _ = writeln!(
+            s,
+            "Selector **calibrated**: a candidate is accepted when its held-out RMS falls, its \
+             parameter is physical with a 95 % interval clear of the no-effect value, and its \
+             statistic (the fall of the weighted fitting SSE over the residual variance) beats \
+             the (1 − α) quantile of its own null from a wild block bootstrap of the current \
+             model, α = {:.1e} per test ({:.0} % family-wise over the library and every round). \
+             The four columns below are the first version's rules, shown for comparison.\n",
+            r.thresholds.get("alpha_per_test").copied().unwrap_or(0.0),
+            100.0 * r.thresholds.get("family_alpha").copied().unwrap_or(0.0)
+        );
+    }
     let _ = writeln!(
         s,
         "Rules: held-out RMS falls (≥ {:.1} % and paired z ≥ {:.1}); ΔBIC with the effective \
@@ -478,15 +512,18 @@ pub fn render_markdown(r: &Report) -> String {
     );
     let _ = writeln!(
         s,
-        "| round | effect | held-out RMS (N) | z | ΔBIC | structure drop | parameters | rules passed | accepted |"
+        "| round | effect | held-out RMS (N) | z | ΔBIC | structure drop | parameters | rules passed | statistic / calibrated threshold | accepted |"
     );
-    let _ = writeln!(s, "| --- | --- | --- | --- | --- | --- | --- | --- | --- |");
+    let _ = writeln!(
+        s,
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+    );
     let yn = |b: bool| if b { "yes" } else { "no" };
     for t in &r.trials {
         let e = &t.evidence;
         let _ = writeln!(
             s,
-            "| {} | {} | {:.2} → {:.2} | {:.1} | {:.1} | {:.0} % | {} | held-out {}, ΔBIC {}, CI {}, structure {} | {} |",
+            "| {} | {} | {:.2} → {:.2} | {:.1} | {:.1} | {:.0} % | {} | held-out {}, ΔBIC {}, CI {}, structure {} | {} | {} |",
             t.round,
             t.effect,
             e.holdout_rmse_before_n,
@@ -499,6 +536,14 @@ pub fn render_markdown(r: &Report) -> String {
             yn(t.passed[1]),
             yn(t.passed[2]),
             yn(t.passed[3]),
+            e.calibration
+                .as_ref()
+                .map(|c| if c.replicates > 0 {
+                    format!("{:.1} / {:.1}", c.statistic, c.threshold)
+                } else {
+                    format!("{:.1} / screened out", c.statistic)
+                })
+                .unwrap_or_else(|| "—".into()),
             yn(t.accepted)
         );
     }

@@ -451,6 +451,12 @@ fn effect_parameters(fit: &Fit, e: Effect) -> BTreeMap<String, Parameter> {
 
 /// Fit `e` on top of `current` (several start values for the nonlinear ones).
 pub fn fit_candidate(d: &Prepared, current: &Fit, e: Effect) -> Fit {
+    fit_candidate_limited(d, current, e, 40)
+}
+
+/// [`fit_candidate`] with at most `max_iter` Levenberg–Marquardt iterations (the bootstrap
+/// replicates start next to their optimum and need few).
+pub fn fit_candidate_limited(d: &Prepared, current: &Fit, e: Effect, max_iter: usize) -> Fit {
     let lay = current.layout.with(e);
     let fpeak = d.f.iter().fold(0.0f64, |m, x| m.max(x.abs())).max(1e-9);
     let xr = {
@@ -476,7 +482,7 @@ pub fn fit_candidate(d: &Prepared, current: &Fit, e: Effect) -> Fit {
         }
     }
     let th = best.map(|b| b.1).unwrap_or_default();
-    fit(d, &lay, &th)
+    crate::model::fit_limited(d, &lay, &th, max_iter)
 }
 
 struct Judged {
@@ -701,13 +707,35 @@ fn round_verdicts(
         done: 0,
         total,
     });
+    // Noise for the replicates: the residual of the current model with every candidate
+    // under test fitted jointly, so a real effect does not inflate its own null.
+    let noise: Vec<f64> = if boot.is_empty() {
+        Vec::new()
+    } else {
+        let lay = boot.iter().fold(current.layout.clone(), |l, e| l.with(*e));
+        let init: Vec<(Effect, Vec<f64>)> = boot
+            .iter()
+            .filter_map(|&e| {
+                let j = judged.iter().find(|j| j.effect == e)?;
+                let k = j.fit.layout.index(e)?;
+                Some((e, j.fit.theta[k..k + effect_params(e).len()].to_vec()))
+            })
+            .collect();
+        let joint = fit(
+            d,
+            &lay,
+            &extend(&current.layout, &current.theta, &lay, &init),
+        );
+        d.f.iter().zip(&joint.force).map(|(a, b)| a - b).collect()
+    };
     let nulls = calibrate::null_statistics(
         d,
         current,
+        &noise,
         &boot,
         cal,
         round,
-        &fit_candidate,
+        &|d, m, e| fit_candidate_limited(d, m, e, 12),
         &|k| {
             progress(Progress {
                 round,
@@ -944,6 +972,7 @@ pub fn diagnose_with_progress(
         model: f.layout.name(),
         train_rmse_n: f.train_rmse(),
         holdout_rmse_n: f.holdout_rmse(&d),
+        holdout_rmse_unweighted_n: f.holdout_rmse_unweighted(&d),
         parameters: f.layout.len(),
     };
     let r_base = residual(&d, &base.force);
@@ -1056,6 +1085,10 @@ fn base_parameters(f: &Fit) -> BTreeMap<String, f64> {
         (
             "leak_velocity_mm_s".to_string(),
             1e3 * f.theta[l.leak_index()],
+        ),
+        (
+            "leak_per_yield_velocity".to_string(),
+            f.theta[l.leak_rel_index()],
         ),
     ])
 }

@@ -12,8 +12,8 @@
 
 use twin::Effect;
 
-use crate::data::{prepare, DataError, Signals};
 use crate::data::Prepared;
+use crate::data::{prepare, DataError, Signals};
 use crate::model::{baseline_start, evaluate, fit, Fit};
 
 /// Threshold on a term's contribution (coefficient × column RMS) relative to the RMS of

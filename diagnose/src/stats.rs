@@ -175,7 +175,10 @@ mod tests {
         // Wilson–Hilferty at ν = 5: table 11.0705 (within 0.5 %).
         assert!((chi2_quantile(0.95, 5.0) / 11.0705 - 1.0).abs() < 5e-3);
         let (lo, hi) = wilson95(95, 100);
-        assert!((lo - 0.8882).abs() < 1e-3 && (hi - 0.9785).abs() < 1e-3, "{lo} {hi}");
+        assert!(
+            (lo - 0.8882).abs() < 1e-3 && (hi - 0.9785).abs() < 1e-3,
+            "{lo} {hi}"
+        );
     }
 
     #[test]

@@ -105,11 +105,10 @@ fn time_tenths(d: &Prepared) -> Grouping {
             )
         })
         .collect();
-    let label = d
-        .t
-        .iter()
-        .map(|t| Some((((t - t0) / span) * 10.0).min(9.0) as usize))
-        .collect();
+    let label =
+        d.t.iter()
+            .map(|t| Some((((t - t0) / span) * 10.0).min(9.0) as usize))
+            .collect();
     Grouping {
         name: "time",
         label,
@@ -118,6 +117,8 @@ fn time_tenths(d: &Prepared) -> Grouping {
 }
 
 /// Time after the last current step, signed by the step and the stroke direction.
+// Several per-sample arrays are read with one index: a range loop is clearer.
+#[allow(clippy::needless_range_loop)]
 fn after_step(d: &Prepared) -> Option<Grouping> {
     let tol = crate::data::level_tolerance(&d.i);
     let edges = [0.0, 0.005, 0.015, 0.04, 0.1];

@@ -1,7 +1,10 @@
 //! diagnose on recordings with concealed effects (diagnose::study: twin's two-chamber model
 //! with formulations that differ from diagnose's candidates, σ = 10 N force noise):
-//! it must name exactly the hidden effect(s), the held-out error must fall, and on null
-//! recordings (current steps without lag, an S-shaped yield curve) it must find nothing.
+//! it must name exactly the hidden effect(s) and recover their size from the generator's
+//! own parameters (which acceptance does not imply), and on null recordings (current steps
+//! without lag, an S-shaped yield curve) it must find nothing and its baseline must reach
+//! the noise floor. The independent proving ground (scripts/proving_ground) is the
+//! stronger check: these recordings come from twin's code.
 
 use diagnose::study::{generate, Scenario, YieldLaw};
 use diagnose::{diagnose, Diagnosis, Options};
@@ -14,7 +17,22 @@ fn run(scn: &Scenario, seed: u64) -> Diagnosis {
     diagnose(&sig, &scn.name, &Options::default()).expect("generated data are valid")
 }
 
-fn expect_exactly(scn: &Scenario, seeds: &[u64]) {
+/// Force noise σ of the study \[N\].
+const NOISE_N: f64 = 10.0;
+
+/// The fitted value of `param` of finding `effect` in the diagnosis.
+fn fitted(dg: &Diagnosis, effect: &str, param: &str) -> f64 {
+    dg.report
+        .findings
+        .iter()
+        .find(|f| f.effect == effect)
+        .and_then(|f| f.parameters.get(param))
+        .map(|p| p.value)
+        .unwrap_or(f64::NAN)
+}
+
+fn expect_exactly(scn: &Scenario, seeds: &[u64]) -> Vec<Diagnosis> {
+    let mut out = Vec::new();
     for &seed in seeds {
         let dg = run(scn, seed);
         let r = &dg.report;
@@ -33,37 +51,31 @@ fn expect_exactly(scn: &Scenario, seeds: &[u64]) {
             scn.name,
             r.undecided
         );
-        for f in &r.findings {
-            assert!(
-                f.evidence.holdout_rmse_after_n < f.evidence.holdout_rmse_before_n,
-                "{} seed {seed}: {} does not lower the held-out error",
-                scn.name,
-                f.effect
-            );
-            for (name, p) in &f.parameters {
-                assert!(
-                    p.ci95[0] <= p.value && p.value <= p.ci95[1],
-                    "{name}: {p:?}"
-                );
-            }
-        }
         if want.is_empty() {
-            assert_eq!(r.final_model.holdout_rmse_n, r.baseline.holdout_rmse_n);
-        } else {
+            // Nothing hidden: the measurement-aware baseline is at the noise floor.
             assert!(
-                r.final_model.holdout_rmse_n < r.baseline.holdout_rmse_n,
-                "{} seed {seed}: held-out {} → {}",
+                r.baseline.holdout_rmse_n <= 1.15 * NOISE_N,
+                "{} seed {seed}: baseline held-out RMS {} N against σ {NOISE_N} N",
                 scn.name,
-                r.baseline.holdout_rmse_n,
-                r.final_model.holdout_rmse_n
+                r.baseline.holdout_rmse_n
             );
+            assert!(r.unexplained.is_empty(), "{:?}", r.unexplained);
         }
+        out.push(dg);
     }
+    out
 }
 
 #[test]
 fn finds_hidden_seal_friction() {
-    expect_exactly(&Scenario::hidden(Effect::SealFriction), &SEEDS);
+    for dg in expect_exactly(&Scenario::hidden(Effect::SealFriction), &SEEDS) {
+        // The generator's friction is F_c (1 − e^{−|v|/2 mm/s}) sgn v with F_c = 20 N.
+        let fc = fitted(&dg, "seal_friction", "friction_force");
+        assert!(
+            (15.0..25.0).contains(&fc),
+            "friction {fc} N, generator 20 N"
+        );
+    }
 }
 
 #[test]
@@ -89,12 +101,20 @@ fn finds_hidden_thermal_softening_without_a_temperature_channel() {
 
 #[test]
 fn finds_hidden_field_lag() {
-    expect_exactly(&Scenario::hidden(Effect::FieldLag), &SEEDS);
+    for dg in expect_exactly(&Scenario::hidden(Effect::FieldLag), &SEEDS) {
+        // Two lags of 6 and 4 ms in cascade: a first-order fit lands near their sum.
+        let tau = fitted(&dg, "field_lag", "field_time_constant");
+        assert!((5.0..14.0).contains(&tau), "time constant {tau} ms");
+    }
 }
 
 #[test]
 fn finds_hidden_fluid_inertia() {
-    expect_exactly(&Scenario::hidden(Effect::FluidInertia), &SEEDS);
+    for dg in expect_exactly(&Scenario::hidden(Effect::FluidInertia), &SEEDS) {
+        // m_f = ρ L A1² / (b h) ≈ 0.45 kg in the generator.
+        let m = fitted(&dg, "fluid_inertia", "fluid_mass");
+        assert!((0.3..0.6).contains(&m), "fluid mass {m} kg");
+    }
 }
 
 #[test]
@@ -119,10 +139,32 @@ fn finds_nothing_with_an_s_shaped_yield_curve() {
 
 #[test]
 fn finds_both_gas_spring_and_thermal_softening() {
+    // The gas stiffness here is about 0.5 N/mm (±4 N over the stroke, under the 10 N
+    // noise) and its preload −p0 Ar ≈ −92 N is indistinguishable from a force-sensor offset:
+    // the preload must show as the baseline's offset, thermal softening must be found, and
+    // nothing else; the stiffness may or may not be resolved beside the energy drift.
     let scn = Scenario {
         name: "gas + thermal".into(),
         hidden: vec![Effect::GasSpring, Effect::ThermalSoftening],
         yield_law: YieldLaw::Saturating,
     };
-    expect_exactly(&scn, &SEEDS[..2]);
+    for &seed in &SEEDS[..2] {
+        let dg = run(&scn, seed);
+        let found = dg.found();
+        assert!(
+            found.contains(&"thermal_softening".to_string()),
+            "{found:?}"
+        );
+        assert!(
+            found
+                .iter()
+                .all(|e| e == "thermal_softening" || e == "gas_spring"),
+            "{found:?}"
+        );
+        let offset = dg.report.baseline_parameters["force_offset_N"];
+        assert!(
+            (-110.0..-75.0).contains(&offset),
+            "offset {offset} N, preload ≈ −92 N"
+        );
+    }
 }
