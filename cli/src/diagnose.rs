@@ -157,10 +157,13 @@ pub fn run(args: &DiagnoseArgs) -> Result<()> {
             println!(
                 "{}: {}; held-out RMS {:.2} N (baseline) → {:.2} N (final); report {}",
                 name,
-                if found.is_empty() {
-                    "nothing missing".to_string()
-                } else {
-                    format!("found {}", found.join(", "))
+                match (found.is_empty(), dg.report.unexplained.len()) {
+                    (true, 0) => "no effect found, residual at noise level".to_string(),
+                    (true, k) => format!("no effect found, {k} unexplained structure(s)"),
+                    (false, 0) => format!("found {}", found.join(", ")),
+                    (false, k) => {
+                        format!("found {}; {k} unexplained structure(s)", found.join(", "))
+                    }
                 },
                 dg.report.baseline.holdout_rmse_n,
                 dg.report.final_model.holdout_rmse_n,

@@ -120,6 +120,8 @@ pub struct Prepared {
     /// Velocity scale of the friction smoothing \[m/s\] (1 % of the peak speed, at least
     /// the leak velocity of the measurement model).
     pub friction_velocity: f64,
+    /// Peak speed of the record \[m/s\] (scale of the curvature term).
+    pub velocity_scale: f64,
     /// Smallest leak velocity of the fluid law: √(π/2) σ_v̂ \[m/s\] (crate::measure).
     pub leak_velocity_min: f64,
     /// What the measurement model found.
@@ -463,6 +465,7 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
         block,
         blocks,
         friction_velocity,
+        velocity_scale: vpeak,
         leak_velocity_min,
         measurement: m.summary,
         split_method,

@@ -131,9 +131,13 @@ impl Layout {
     pub fn leak_rel_index(&self) -> usize {
         2 * self.nk + 2
     }
-    /// Number of baseline parameters (knots, offset, leaks).
-    pub fn base_len(&self) -> usize {
+    /// Index of the first knot's speed-curvature coefficient c₂ \[N\] (nk of them).
+    pub fn curvature_index(&self) -> usize {
         2 * self.nk + BASE_EXTRA
+    }
+    /// Number of baseline parameters (knots, offset, leaks, curvature per knot).
+    pub fn base_len(&self) -> usize {
+        3 * self.nk + BASE_EXTRA
     }
     /// Number of parameters.
     pub fn len(&self) -> usize {
@@ -242,6 +246,7 @@ pub fn evaluate(d: &Prepared, lay: &Layout, theta: &[f64], jac: bool) -> Evaluat
     // each sample adds its velocity error in quadrature.
     let leak = theta[ileak].max(0.0);
     let ilr = lay.leak_rel_index();
+    let icv = lay.curvature_index();
     let leak_rel = theta[ilr].max(0.0);
     let tau = ilag.map(|k| theta[k].max(0.0)).unwrap_or(0.0);
     let comp = icp.map(|k| theta[k].max(0.0)).unwrap_or(0.0);
@@ -280,6 +285,12 @@ pub fn evaluate(d: &Prepared, lay: &Layout, theta: &[f64], jac: bool) -> Evaluat
         };
         let fy = (scale * fy_raw).max(FY_MIN);
         let c = (scale * c_raw).max(C_MIN);
+        // Curvature of the force–speed law: c₂(I) v|v| / V, V the record's peak speed
+        // (shear thinning c₂ < 0, thickening c₂ > 0; a Herschel–Bulkley or regularised
+        // fluid is not a Bingham line at speed).
+        let q2 = d.v[j] * d.v[j].abs() / d.velocity_scale;
+        let c2_raw = (1.0 - lam) * theta[icv + k] + lam * theta[icv + k2];
+        let curv = scale * c2_raw * q2;
         let yv = fy / c;
         let veps = (sample_leak(leak, d.v_sigma[j]).powi(2) + (leak_rel * yv).powi(2)).sqrt();
         let (dve_la, dve_lr, dve_fy, dve_c) = if veps > 0.0 {
@@ -358,9 +369,19 @@ pub fn evaluate(d: &Prepared, lay: &Layout, theta: &[f64], jac: bool) -> Evaluat
             f0
         };
         fl_prev = fluid;
-        let mut total = fluid + theta[ioff];
+        let mut total = fluid + theta[ioff] + curv;
         if jac {
             jm[row + ioff] = 1.0;
+            jm[row + icv + k] += scale * (1.0 - lam) * q2;
+            if k2 != k {
+                jm[row + icv + k2] += scale * lam * q2;
+            }
+            if let Some(b) = ith {
+                jm[row + b] -= d.energy_kj[j] * c2_raw * q2;
+            }
+            if let Some(l) = ilag {
+                jm[row + l] += scale * (theta[icv + k2] - theta[icv + k]) * dlam * di_dtau * q2;
+            }
         }
         if let Some(q) = ifr {
             let sh = (v / d.friction_velocity).tanh();
@@ -667,7 +688,7 @@ fn normal_equations(
 /// knot, F_y = a / 1.5 (the Bingham slit's high-speed intercept is 3/2 F_y).
 pub fn baseline_start(d: &Prepared) -> (Layout, Vec<f64>) {
     let nk = d.knots.len();
-    let mut theta = vec![0.0; 2 * nk + BASE_EXTRA];
+    let mut theta = vec![0.0; 3 * nk + BASE_EXTRA];
     for k in 0..nk {
         let (mut s11, mut s12, mut s22, mut b1, mut b2) = (0.0, 0.0, 0.0, 0.0, 0.0);
         for j in 0..d.len() {
@@ -741,7 +762,7 @@ mod tests {
             effects: Effect::ALL.to_vec(),
         };
         let mut theta = vec![
-            250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 12.0, 0.004, 0.05,
+            250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 12.0, 0.004, 0.05, -20.0, 10.0, 30.0,
         ];
         // compressibility 0.05 mm/kN, gas, friction, thermal, lag 8 ms, inertia (ALL order)
         theta.extend([5e-8, 800.0, 15.0, 0.05, 0.008, 0.5]);
@@ -777,7 +798,9 @@ mod tests {
             nk: d.knots.len(),
             effects: vec![],
         };
-        let th = vec![250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 0.0, 0.004, 0.0];
+        let th = vec![
+            250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 0.0, 0.004, 0.0, 0.0, 0.0, 0.0,
+        ];
         let f0 = evaluate(&d, &base, &th, false).force;
         let lay = base.with(Effect::FluidCompressibility);
         let mut tc = th.clone();
@@ -790,7 +813,7 @@ mod tests {
             .fold(0.0, f64::max);
         assert!(worst < 1.0, "largest difference {worst} N");
         // A stiff chamber lags: with a large compliance the force after reversal is lower.
-        tc[9] = 2e-7;
+        tc[12] = 2e-7;
         let f2 = evaluate(&d, &lay, &tc, false).force;
         let diff: f64 = f0.iter().zip(&f2).map(|(a, b)| (a - b).powi(2)).sum();
         assert!(diff > 1e3);

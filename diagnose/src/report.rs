@@ -245,6 +245,9 @@ pub struct Report {
     pub findings: Vec<Finding>,
     /// Explanations the data cannot tell apart.
     pub undecided: Vec<Undecided>,
+    /// Effects accepted in their round and withdrawn at the end (their parameter fell back
+    /// to its no-effect value once later effects were in).
+    pub withdrawn: Vec<String>,
     /// Structure the final model leaves beyond noise (empty when the residual is noise).
     pub unexplained: Vec<Unexplained>,
     /// Every candidate tried.
@@ -349,6 +352,9 @@ pub fn render_markdown(r: &Report) -> String {
     }
     for u in &r.undecided {
         let _ = writeln!(s, "- **undecided: {}** — {}", u.effects.join(" or "), u.why);
+    }
+    for w in &r.withdrawn {
+        let _ = writeln!(s, "- withdrawn: {w}");
     }
     if !r.unexplained.is_empty() {
         let _ = writeln!(s, "\n## Unexplained\n");

@@ -690,9 +690,12 @@ fn round_verdicts(
         .iter()
         .map(|j| calibrate::statistic(current, &j.fit))
         .collect();
-    // Held-out gain and a physical parameter first; then the statistic above the screen.
+    // Held-out gain, a physical parameter, and systematic held-out structure removed
+    // first; then the statistic above the screen.
     let eligible = |j: &Judged| {
-        j.passed[2] && j.evidence.holdout_rmse_after_n < j.evidence.holdout_rmse_before_n
+        j.passed[2]
+            && j.passed[3]
+            && j.evidence.holdout_rmse_after_n < j.evidence.holdout_rmse_before_n
     };
     let boot: Vec<Effect> = judged
         .iter()
@@ -977,11 +980,15 @@ pub fn diagnose_with_progress(
     };
     let r_base = residual(&d, &base.force);
     let mismatch = mismatch_list(&d, &reg, &r_base, th);
-    let sel = match opts.selector {
+    let mut sel = match opts.selector {
         Selector::Sindy => sindy_selection(&d, &reg, &base, opts),
         _ => forward_selection(&d, &reg, &base, opts, progress),
     };
-    let current = sel.current;
+    let (current, withdrawn) = if opts.selector == Selector::Calibrated {
+        prune(&d, sel.current, &mut sel.accepted)
+    } else {
+        (sel.current, Vec::new())
+    };
     let findings = sel
         .accepted
         .iter()
@@ -1059,6 +1066,7 @@ pub fn diagnose_with_progress(
         baseline_residual: residual_stats(&d, &r_base),
         findings,
         undecided: sel.undecided,
+        withdrawn,
         unexplained,
         trials: sel.trials,
         final_model: summary(&current),
@@ -1075,6 +1083,47 @@ pub fn diagnose_with_progress(
         final_effects: current.layout.effects.clone(),
         data: d,
     })
+}
+
+/// Whether effect `e`'s parameter in `fit` is physical with a 95 % interval clear of its
+/// no-effect value (rule 3).
+fn interval_clear(fit: &Fit, e: Effect) -> bool {
+    let Some(k) = fit.layout.index(e) else {
+        return false;
+    };
+    effect_params(e).iter().enumerate().any(|(q, info)| {
+        let (v, se) = (fit.theta[k + q], fit.se[k + q]);
+        let excludes = v - 1.96 * se > info.no_effect || v + 1.96 * se < info.no_effect;
+        let physical = info.sign == 0.0 || (v - info.no_effect) * info.sign > 0.0;
+        se.is_finite() && excludes && physical
+    })
+}
+
+/// Withdraw accepted effects whose parameter, once later effects are in, has fallen back
+/// to its no-effect value (its interval no longer clear of it): an effect accepted early
+/// can be made redundant by a later one. The model is refitted without them.
+fn prune(
+    d: &Prepared,
+    mut current: Fit,
+    accepted: &mut Vec<(Effect, Evidence, Vec<BlockGain>)>,
+) -> (Fit, Vec<String>) {
+    let mut withdrawn = Vec::new();
+    while let Some(pos) = accepted
+        .iter()
+        .position(|(e, _, _)| current.layout.index(*e).is_some() && !interval_clear(&current, *e))
+    {
+        let (e, _, _) = accepted.remove(pos);
+        let mut lay = current.layout.clone();
+        lay.effects.retain(|x| *x != e);
+        let theta = extend(&current.layout, &current.theta, &lay, &[]);
+        current = fit(d, &lay, &theta);
+        withdrawn.push(format!(
+            "{}: accepted in its round, but once the later effects were in its parameter's \
+             95 % interval included the no-effect value; withdrawn and the model refitted",
+            e.id()
+        ));
+    }
+    (current, withdrawn)
 }
 
 /// The baseline's measurement parameters (force offset, leak velocity) of a fit.

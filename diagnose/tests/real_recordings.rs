@@ -1,6 +1,7 @@
 //! diagnose on the real UTFSM recordings (shared/data/real/maurel-utfsm): the five currents
 //! of one test concatenated into one recording. It must run, report where the baseline
-//! misses, and every finding must lower the held-out error. What it finds is printed, not
+//! misses, give an honest verdict (a finding or an unexplained structure), and its final
+//! model must be better in most contiguous held-out blocks. What it finds is printed, not
 //! prescribed. Fails, rather than skipping, when the data directory is missing.
 
 use std::path::{Path, PathBuf};
@@ -60,18 +61,15 @@ fn check(stem: &str) {
     }
     for f in &r.findings {
         eprintln!(
-            "  finding {}: {:?} held-out {:.1} → {:.1} N, ΔBIC {:.0}",
+            "  finding {}: {:?} held-out {:.1} → {:.1} N",
             f.effect,
             f.parameters,
             f.evidence.holdout_rmse_before_n,
             f.evidence.holdout_rmse_after_n,
-            f.evidence.delta_bic
         );
-        assert!(
-            f.evidence.holdout_rmse_after_n < f.evidence.holdout_rmse_before_n,
-            "{stem}: finding {} does not lower the held-out error",
-            f.effect
-        );
+    }
+    for u in &r.unexplained {
+        eprintln!("  unexplained ({}): {:?}", u.grouping, u.concentrates_in);
     }
     for u in &r.undecided {
         eprintln!("  undecided {:?}: {}", u.effects, u.why);
@@ -86,7 +84,24 @@ fn check(stem: &str) {
         "{stem}: no mismatch region reported"
     );
     assert!(r.baseline.holdout_rmse_n.is_finite() && r.baseline.holdout_rmse_n > 0.0);
-    assert!(r.final_model.holdout_rmse_n <= r.baseline.holdout_rmse_n);
+    // An honest verdict: a finding, or structure reported as unexplained; never a bare
+    // "nothing is missing" beside a residual far above noise.
+    assert!(
+        !r.findings.is_empty() || !r.unexplained.is_empty(),
+        "{stem}: neither a finding nor an unexplained entry"
+    );
+    // The gain holds block by block, not only on the pooled RMS: the final model is better
+    // in most contiguous held-out blocks.
+    let better = r
+        .holdout_blocks
+        .iter()
+        .filter(|b| b.rmse_after_n < b.rmse_before_n)
+        .count();
+    assert!(
+        2 * better > r.holdout_blocks.len(),
+        "{stem}: better in {better} of {} held-out blocks",
+        r.holdout_blocks.len()
+    );
 }
 
 #[test]

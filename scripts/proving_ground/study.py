@@ -77,13 +77,14 @@ def run_one(task):
     csv = os.path.join(out, f"seed{seed:04d}.csv")
     meta_path = os.path.join(out, f"seed{seed:04d}.meta.json")
     t0 = time.process_time()
+    gen_cpu = None  # None: scenario files reused from --out
     if not (os.path.exists(csv) and os.path.exists(meta_path)):
         meta, rec = generate.scenario(seed)
         generate.write_csv(csv + ".tmp", rec)
         os.replace(csv + ".tmp", csv)
         with open(meta_path, "w") as f:
             json.dump(generate._jsonable(meta), f, indent=1)
-    gen_cpu = time.process_time() - t0
+        gen_cpu = time.process_time() - t0
     with open(meta_path) as f:
         meta = json.load(f)
     res = []
@@ -94,6 +95,7 @@ def run_one(task):
             with open(side) as f:
                 old = json.load(f)
             if old.get("binary_sha256") == bin_sha:
+                old["reused"] = True
                 res.append(old)
                 continue
         cmd = [binary, "diagnose", csv, "--json", js, "--report", os.devnull]
@@ -107,7 +109,8 @@ def run_one(task):
             rc, err = "timeout", ""
         wall = time.perf_counter() - t1
         entry = dict(seed=seed, selector=sel, rc=rc, wall_s=wall, hidden=meta["hidden"],
-                     u=[round(e["u_achieved"], 2) for e in meta["effects"]])
+                     u=[round(e["u_achieved"], 2) for e in meta["effects"]],
+                     sigma_F=meta.get("sigma_F_N"))
         if rc == 0 and os.path.exists(js):
             with open(js) as f:
                 d = json.load(f)
@@ -176,6 +179,15 @@ def summarise(records, selectors, label_of):
         for name, k, n in rows:
             S[name] = [k, n]
             lines.append(f"| {name} | {fmt_rate(k, n)} |")
+        # The measurement-aware baseline on nulls: its held-out RMS over the true force noise.
+        ratios = sorted(r["baseline_rmse"] / r["sigma_F"] for r, _ in nulls
+                        if r.get("sigma_F") and r.get("baseline_rmse") is not None)
+        if ratios:
+            k15 = sum(x <= 1.15 for x in ratios)
+            S["null_baseline_over_sigma_median"] = statistics.median(ratios)
+            S["null baseline within 15 % of σ_F"] = [k15, len(ratios)]
+            lines.append(f"| null baseline held-out RMS within 15 % of σ_F | {fmt_rate(k15, len(ratios))} |")
+            lines.append(f"| null baseline held-out RMS / σ_F, median | {statistics.median(ratios):.2f} |")
         mf = statistics.mean([s["n_false"] for _, s in sc]) if sc else float("nan")
         S["mean_false_per_record"] = mf
         S["mean_wall_s"] = statistics.mean(walls) if walls else None
@@ -263,7 +275,9 @@ def main():
     md_body, summary = summarise(records, run_sels, label_of)
     rng = f"{seeds[0]}–{seeds[-1]}" if not args.quick else ", ".join(map(str, seeds))
     cmd = "python scripts/proving_ground/study.py " + " ".join(sys.argv[1:])
-    gen = statistics.mean(r["gen_cpu_s"] for r in records)
+    gens = [r["gen_cpu_s"] for r in records if r["gen_cpu_s"] is not None]
+    n_reused = sum(1 for rec in records for r in rec["runs"] if r.get("reused"))
+    n_runs = sum(len(rec["runs"]) for rec in records)
     nnull = sum(1 for r in records if not r["runs"][0]["hidden"])
     head = [f"## Proving ground: `mrtwin diagnose` on independent simulations\n",
             f"Command: `{cmd}` ({len(seeds)} scenarios, seeds {rng}; {nnull} nulls; "
@@ -278,7 +292,11 @@ def main():
     unsupported = [s for s in selectors if use_flag and not supported[s][0]]
     if unsupported:
         head.append(f"Selectors rejected by the binary and skipped: {', '.join(unsupported)}.\n")
-    head.append(f"Generation: {gen:.2f} s CPU per scenario (mean).\n")
+    if gens:
+        head.append(f"Generation: {statistics.mean(gens):.2f} s CPU per scenario (mean of {len(gens)}).\n")
+    if n_reused:
+        head.append(f"{n_reused} of {n_runs} diagnose runs were reused from earlier runs of the same binary "
+                    "(`--resume`); their wall times are those measured then.\n")
     md = "\n".join(head) + "\n" + md_body
     with open(os.path.join(out, "results.json"), "w") as f:
         json.dump(dict(seeds=seeds, records=records, summary=summary), f, indent=1, default=str)
