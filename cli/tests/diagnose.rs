@@ -193,8 +193,8 @@ fn bad_input_fails_with_a_clear_message() {
 
 /// The broadband real record (Dyke's prototype damper, random strokes, a continuously
 /// varying command as the current channel, the force clipped at 4545.4545 N near its end):
-/// the clipped stretches are named and left out, the loop plots are drawn from binned
-/// held-out samples (they were empty before), and the report either finds something with a
+/// the clipped stretches are named and left out, the loop plots are drawn (they were empty
+/// before), and the report either finds something with a
 /// held-out gain or lists what is unexplained — never a bare "nothing is missing".
 #[test]
 fn broadband_real_record_gets_plots_stuck_channels_and_an_honest_verdict() {
@@ -238,8 +238,11 @@ fn broadband_real_record_gets_plots_stuck_channels_and_an_honest_verdict() {
     for svg in ["loops_force_velocity.svg", "loops_force_displacement.svg"] {
         let text = fs::read_to_string(plots.join(svg)).unwrap();
         assert!(text.len() > 5_000, "{svg}: {} bytes", text.len());
+        // Averaged loops per current band, or whole held-out strokes where the command
+        // holds a level long enough (this record switches between about 0 and 2.2 V).
         assert!(
-            text.contains("mean per bin") && text.contains("final model"),
+            (text.contains("mean per bin") || text.contains("held-out stroke"))
+                && text.contains("final model"),
             "{svg}"
         );
     }
@@ -286,4 +289,49 @@ fn selector_and_calibration_options_are_checked() {
     ]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     assert_eq!(json(&out_json)["selector"], "rules");
+}
+
+/// A broadband stroke with a current that sweeps continuously (no held level): the loop
+/// plots are averaged per bin of the held-out samples in each third of the current range.
+#[test]
+fn continuous_current_gets_binned_loop_plots() {
+    let dir = TempDir::new("binned");
+    let csv = dir.path("sweep.csv");
+    let mut text = String::from("time_s,displacement_m,velocity_m_s,force_N,current_A\n");
+    let (rate, n) = (500.0, 15_000);
+    for k in 0..n {
+        let t = k as f64 / rate;
+        let (w1, w2) = (
+            2.0 * std::f64::consts::PI * 1.3,
+            2.0 * std::f64::consts::PI * 3.1,
+        );
+        let x = 0.006 * (w1 * t).sin() + 0.003 * (w2 * t + 0.7).sin();
+        let v = 0.006 * w1 * (w1 * t).cos() + 0.003 * w2 * (w2 * t + 0.7).cos();
+        let i = 0.1 + 0.9 * (0.5 - 0.5 * (2.0 * std::f64::consts::PI * t / 30.0).cos());
+        let noise = 3.0 * ((k * 7919 % 1000) as f64 / 1000.0 - 0.5);
+        let f = (200.0 + 600.0 * i) * (v / 0.004).tanh() + 900.0 * v + noise;
+        text.push_str(&format!("{t},{x},{v},{f},{i}\n"));
+    }
+    fs::write(&csv, text).unwrap();
+    let plots = dir.path("plots");
+    let o = mrtwin(&[
+        "diagnose".as_ref(),
+        csv.as_os_str(),
+        "--plots".as_ref(),
+        plots.as_os_str(),
+        "--replicates".as_ref(),
+        "8".as_ref(),
+        "--report".as_ref(),
+        dir.path("r.md").as_os_str(),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "stderr: {}", stderr(&o));
+    for svg in ["loops_force_velocity.svg", "loops_force_displacement.svg"] {
+        let text = fs::read_to_string(plots.join(svg)).unwrap();
+        assert_eq!(
+            text.matches("mean per bin").count(),
+            3,
+            "{svg}: three current bands"
+        );
+        assert!(text.contains("final model"), "{svg}");
+    }
 }

@@ -16,31 +16,47 @@ pub fn phi(u: f64) -> (f64, f64) {
         return (1.0, f64::INFINITY);
     }
     // Bounds: G(1 + s) ≤ 1.5 s², so 1 + sqrt(u/1.5) ≤ Φ; and Φ ≤ 3/2 + u.
-    let mut lo = 1.0 + (u / 1.5).sqrt();
-    let mut hi = 1.5 + u;
-    let mut x = hi.min(lo + u);
-    for _ in 0..60 {
-        let g = x - 1.5 + 0.5 / (x * x) - u;
-        if g > 0.0 {
+    let (lo, hi) = (1.0 + (u / 1.5).sqrt(), 1.5 + u);
+    let x = safeguarded_newton(
+        |x| x - 1.5 + 0.5 / (x * x) - u,
+        |x| 1.0 - 1.0 / (x * x * x),
+        lo,
+        hi,
+        hi.min(lo + u),
+    );
+    let dg = 1.0 - 1.0 / (x * x * x);
+    (x, if dg > 0.0 { 1.0 / dg } else { f64::INFINITY })
+}
+
+/// The root of an increasing `g` in `[lo, hi]` (g(lo) ≤ 0 ≤ g(hi)) from `x`: Newton steps,
+/// bisection whenever a step would leave the bracket; relative tolerance 1e-14.
+fn safeguarded_newton(
+    g: impl Fn(f64) -> f64,
+    dg: impl Fn(f64) -> f64,
+    mut lo: f64,
+    mut hi: f64,
+    mut x: f64,
+) -> f64 {
+    for _ in 0..80 {
+        let r = g(x);
+        if r > 0.0 {
             hi = x;
         } else {
             lo = x;
         }
-        let dg = 1.0 - 1.0 / (x * x * x);
-        let newton = x - g / dg;
-        let next = if dg > 0.0 && newton > lo && newton < hi {
+        let d = dg(x);
+        let newton = x - r / d;
+        let next = if d > 0.0 && newton > lo && newton < hi {
             newton
         } else {
             0.5 * (lo + hi)
         };
         if (next - x).abs() <= 1e-14 * x {
-            x = next;
-            break;
+            return next;
         }
         x = next;
     }
-    let dg = 1.0 - 1.0 / (x * x * x);
-    (x, if dg > 0.0 { 1.0 / dg } else { f64::INFINITY })
+    x
 }
 
 /// Rod force of the incompressible Bingham damper and its derivatives with respect to
@@ -87,28 +103,14 @@ pub fn phi_leaky(u: f64, e: f64) -> (f64, f64, f64) {
     }
     let g = |x: f64| (1.0 + e) * x - 1.5 + 0.5 / (x * x) - u;
     let dg = |x: f64| 1.0 + e - 1.0 / (x * x * x);
-    let (mut lo, mut hi) = (1.0, 1.5 + u);
-    let mut x = (1.0 + (u - e).max(0.0) / (1.0 + e)).clamp(lo, hi);
-    for _ in 0..80 {
-        let r = g(x);
-        if r > 0.0 {
-            hi = x;
-        } else {
-            lo = x;
-        }
-        let d = dg(x);
-        let newton = x - r / d;
-        let next = if d > 0.0 && newton > lo && newton < hi {
-            newton
-        } else {
-            0.5 * (lo + hi)
-        };
-        if (next - x).abs() <= 1e-14 * x {
-            x = next;
-            break;
-        }
-        x = next;
-    }
+    let (lo, hi) = (1.0, 1.5 + u);
+    let x = safeguarded_newton(
+        g,
+        dg,
+        lo,
+        hi,
+        (1.0 + (u - e).max(0.0) / (1.0 + e)).clamp(lo, hi),
+    );
     let d = dg(x);
     (x, 1.0 / d, -x / d)
 }

@@ -131,6 +131,19 @@ pub struct Prepared {
 }
 
 impl Prepared {
+    /// Current steps signed by the stroke direction, `ΔI · sgn v` at every sample (0 at the
+    /// first): the signal a field lag leaves its trace on.
+    pub fn current_steps(&self) -> Vec<f64> {
+        (0..self.len())
+            .map(|j| {
+                if j == 0 {
+                    0.0
+                } else {
+                    (self.i[j] - self.i[j - 1]) * self.v[j].signum()
+                }
+            })
+            .collect()
+    }
     /// Number of samples.
     pub fn len(&self) -> usize {
         self.t.len()

@@ -355,15 +355,7 @@ fn residual_stats(d: &Prepared, r: &[f64]) -> ResidualStats {
     let rho1 = stats::autocorr(r, 1);
     let (q, crit) = stats::ljung_box(r, 20);
     let n_eff = stats::effective_n(n, rho1);
-    let step: Vec<f64> = (0..n)
-        .map(|j| {
-            if j == 0 {
-                0.0
-            } else {
-                (d.i[j] - d.i[j - 1]) * d.v[j].signum()
-            }
-        })
-        .collect();
+    let step = d.current_steps();
     let signals: [(&str, &[f64]); 4] = [
         ("velocity", &d.v),
         ("acceleration", &d.a),
@@ -781,6 +773,19 @@ struct Selection {
     trials: Vec<Trial>,
 }
 
+impl Selection {
+    /// Nothing selected yet: the current model is `base`.
+    fn new(base: &Fit) -> Self {
+        Self {
+            current: base.clone(),
+            accepted: Vec::new(),
+            undecided: Vec::new(),
+            undecided_effects: Vec::new(),
+            trials: Vec::new(),
+        }
+    }
+}
+
 fn undecided_pair(winner: Effect, other: Effect, why: &str) -> Undecided {
     Undecided {
         effects: vec![winner.id().into(), other.id().into()],
@@ -802,13 +807,7 @@ fn forward_selection(
     progress: &(dyn Fn(Progress) + Sync),
 ) -> Selection {
     let th = &opts.thresholds;
-    let mut sel = Selection {
-        current: base.clone(),
-        accepted: Vec::new(),
-        undecided: Vec::new(),
-        undecided_effects: Vec::new(),
-        trials: Vec::new(),
-    };
+    let mut sel = Selection::new(base);
     let mut remaining: Vec<Effect> = Effect::ALL.to_vec();
     // Candidates that tied with the one accepted in the previous round.
     let mut pending_ties: Vec<(Effect, Effect)> = Vec::new();
@@ -916,13 +915,7 @@ fn forward_selection(
 /// The comparison method: SINDy-style selection on the baseline residual, then the chosen
 /// effects fitted one after the other (no acceptance test).
 fn sindy_selection(d: &Prepared, reg: &Regions, base: &Fit, opts: &Options) -> Selection {
-    let mut sel = Selection {
-        current: base.clone(),
-        accepted: Vec::new(),
-        undecided: Vec::new(),
-        undecided_effects: Vec::new(),
-        trials: Vec::new(),
-    };
+    let mut sel = Selection::new(base);
     for e in crate::sindy::sindy_select(d, base) {
         let flags = flagged(d, reg, &residual(d, &sel.current.force), &opts.thresholds);
         let cand = fit_candidate(d, &sel.current, e);

@@ -166,15 +166,7 @@ fn nearest(knots: &[f64], i: f64) -> usize {
 
 /// Signals the residual correlates with beyond the autocorrelated 95 % band.
 fn correlates(d: &Prepared, r: &[f64], n_eff: f64) -> Vec<String> {
-    let step: Vec<f64> = (0..d.len())
-        .map(|j| {
-            if j == 0 {
-                0.0
-            } else {
-                (d.i[j] - d.i[j - 1]) * d.v[j].signum()
-            }
-        })
-        .collect();
+    let step = d.current_steps();
     let sgn: Vec<f64> = d.v.iter().map(|v| v.signum()).collect();
     let band = 1.96 / n_eff.max(1.0).sqrt();
     let signals: [(&str, &[f64]); 6] = [
