@@ -2,16 +2,24 @@
 //!
 //! The residual is grouped several ways (signed speed × current, position × direction,
 //! time, time after a current step). In each grouping the group means are tested against
-//! zero with a χ² that uses the effective sample size of the residual's own
-//! autocorrelation (n / τ_int, τ_int = 1 + 2 Σ ρ_k up to the first ρ_k < 0.05), so coloured
-//! noise alone does not look like structure. A grouping is reported when its χ² exceeds
+//! zero with a χ² that uses the variance and the effective sample size of the residual
+//! *within* the groups (n / τ_int, τ_int = 1 + 2 Σ ρ_k up to the first ρ_k < 0.05), so
+//! coloured noise alone does not look like structure, and structure does not hide itself by
+//! lengthening the correlation time it is judged with. A grouping is reported when its χ² exceeds
 //! the 99 % critical value **and** its systematic part (the group means) holds at least
 //! 3 % of the residual's mean square — a structure too small to matter is not reported
-//! even when a long record makes it significant.
+//! even when a long record makes it significant. Beside the groupings, a residual whose RMS
+//! is more than 2.5 times the force channel's own high-frequency noise
+//! ([`crate::measure`]) is reported as a "residual level" entry (its `chi2` is then the
+//! ratio squared, against 2.5²): misfit spread over everything escapes every grouping.
 
 use crate::data::Prepared;
 use crate::report::Unexplained;
 use crate::stats;
+
+/// A residual RMS above this multiple of the force channel's high-frequency noise is
+/// reported as structure (coloured force noise alone — AR(1) up to ρ = 0.8 — stays below 2).
+pub const LEVEL_RATIO: f64 = 2.5;
 
 /// Smallest share of the residual mean square a reported structure holds.
 pub const MIN_SHARE: f64 = 0.03;
@@ -199,9 +207,28 @@ pub fn unexplained(d: &Prepared, r: &[f64]) -> Vec<Unexplained> {
     }
     let tau = integrated_time(&ru);
     let corr = correlates(d, r, n / tau);
+    let mut out = Vec::new();
+    // The level: a residual far above the force channel's own (high-frequency) noise is
+    // structure, even where no grouping below catches it (misfit spread over everything).
+    let hf = d.measurement.force_noise_hf_n;
+    if hf > 0.0 && var.sqrt() > LEVEL_RATIO * hf {
+        out.push(Unexplained {
+            grouping: "residual level".into(),
+            concentrates_in: vec![format!(
+                "everywhere: RMS {:.1} N against {:.1} N of high-frequency noise in the force \
+                 channel itself",
+                var.sqrt(),
+                hf
+            )],
+            systematic_rms_n: (var - hf * hf).max(0.0).sqrt(),
+            share_of_residual: (1.0 - hf * hf / var).max(0.0),
+            chi2: var / (hf * hf),
+            chi2_crit99: LEVEL_RATIO * LEVEL_RATIO,
+            correlates_with: corr.clone(),
+        });
+    }
     let mut groupings = vec![speed_current(d), position_direction(d), time_tenths(d)];
     groupings.extend(after_step(d));
-    let mut out = Vec::new();
     for g in groupings {
         let k = g.names.len();
         let mut sum = vec![0.0; k];
@@ -216,9 +243,20 @@ pub fn unexplained(d: &Prepared, r: &[f64]) -> Vec<Unexplained> {
         if groups.len() < 2 {
             continue;
         }
+        // The noise's own variance and correlation time come from the residual within the
+        // groups (the group means taken out): structure must not lengthen its own yardstick.
+        let within: Vec<f64> = used
+            .iter()
+            .map(|&j| match g.label[j] {
+                Some(b) if cnt[b] >= 20 => r[j] - mean - sum[b] / cnt[b] as f64,
+                _ => r[j] - mean,
+            })
+            .collect();
+        let var_w = (within.iter().map(|x| x * x).sum::<f64>() / n).max(1e-300);
+        let tau_w = integrated_time(&within);
         let chi2: f64 = groups
             .iter()
-            .map(|&b| (cnt[b] as f64 / tau) * (sum[b] / cnt[b] as f64).powi(2) / var)
+            .map(|&b| (cnt[b] as f64 / tau_w) * (sum[b] / cnt[b] as f64).powi(2) / var_w)
             .sum();
         let systematic: f64 = groups
             .iter()
