@@ -225,11 +225,24 @@ fn current_knots(i: &[f64]) -> Vec<f64> {
             b += 1;
         }
         if b - a >= min_count {
-            levels.push(sorted[a..b].iter().sum::<f64>() / (b - a) as f64);
+            levels.push((sorted[a..b].iter().sum::<f64>() / (b - a) as f64, b - a));
             covered += b - a;
         }
         a = b;
     }
+    // Levels closer than the tolerance are one knot (two random levels a few mA apart
+    // would make two knots the data cannot tell apart).
+    let mut merged: Vec<(f64, usize)> = Vec::new();
+    for (l, c) in levels {
+        match merged.last_mut() {
+            Some((m, mc)) if l - *m <= tol => {
+                *m = (*m * *mc as f64 + l * c as f64) / (*mc + c) as f64;
+                *mc += c;
+            }
+            _ => merged.push((l, c)),
+        }
+    }
+    let levels: Vec<f64> = merged.into_iter().map(|x| x.0).collect();
     if !levels.is_empty() && levels.len() <= 12 && covered as f64 >= 0.9 * n as f64 {
         levels
     } else {
