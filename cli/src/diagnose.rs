@@ -131,8 +131,7 @@ pub fn run(args: &DiagnoseArgs) -> Result<()> {
         },
         ..Default::default()
     };
-    let sync_bar = |p: Progress| progress_bar(p);
-    let dg = ::diagnose::diagnose_with_progress(&signals(&rec), &name, &opts, &sync_bar)
+    let dg = ::diagnose::diagnose_with_progress(&signals(&rec), &name, &opts, &progress_bar)
         .with_context(|| format!("cannot diagnose {name}"))?;
     {
         use std::io::IsTerminal;

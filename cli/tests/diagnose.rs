@@ -44,6 +44,15 @@ fn write_scenario(scn: &Scenario, path: &Path) {
     write_csv(path, &rec).expect("cannot write the test recording");
 }
 
+/// Nothing hidden: current steps without lag, a saturating yield curve.
+fn null_scenario() -> Scenario {
+    Scenario {
+        name: "null".into(),
+        hidden: vec![],
+        yield_law: YieldLaw::Saturating,
+    }
+}
+
 fn json(path: &Path) -> serde_json::Value {
     let text = fs::read_to_string(path).expect("JSON written");
     serde_json::from_str(&text).expect("valid JSON")
@@ -121,12 +130,7 @@ fn finds_field_lag_with_json_report_and_plots() {
 fn nothing_found_still_exits_zero() {
     let dir = TempDir::new("null");
     let csv = dir.path("null.csv");
-    let scn = Scenario {
-        name: "null".into(),
-        hidden: vec![],
-        yield_law: YieldLaw::Saturating,
-    };
-    write_scenario(&scn, &csv);
+    write_scenario(&null_scenario(), &csv);
     let out_json = dir.path("d.json");
     let o = mrtwin(&[
         "diagnose".as_ref(),
@@ -252,12 +256,7 @@ fn broadband_real_record_gets_plots_stuck_channels_and_an_honest_verdict() {
 fn selector_and_calibration_options_are_checked() {
     let dir = TempDir::new("sel");
     let csv = dir.path("null.csv");
-    let scn = Scenario {
-        name: "null".into(),
-        hidden: vec![],
-        yield_law: YieldLaw::Saturating,
-    };
-    write_scenario(&scn, &csv);
+    write_scenario(&null_scenario(), &csv);
     let o = mrtwin(&[
         "diagnose".as_ref(),
         csv.as_os_str(),

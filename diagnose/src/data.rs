@@ -72,8 +72,6 @@ pub struct Prepared {
     /// Velocity v \[m/s\], rebuilt from the displacement and velocity channels
     /// ([`crate::measure`]).
     pub v: Vec<f64>,
-    /// The velocity channel as recorded \[m/s\].
-    pub v_meas: Vec<f64>,
     /// Standard deviation of the rebuilt velocity's error \[m/s\].
     pub v_sigma: Vec<f64>,
     /// Weight of each sample in every fit and every error figure: σ_F² / (σ_F² + the
@@ -122,8 +120,6 @@ pub struct Prepared {
     pub friction_velocity: f64,
     /// Peak speed of the record \[m/s\] (scale of the curvature term).
     pub velocity_scale: f64,
-    /// Smallest leak velocity of the fluid law: √(π/2) σ_v̂ \[m/s\] (crate::measure).
-    pub leak_velocity_min: f64,
     /// What the measurement model found.
     pub measurement: crate::measure::MeasurementSummary,
     /// How the data were split.
@@ -469,7 +465,6 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
         t,
         x,
         v,
-        v_meas: s.velocity_m_s.clone(),
         v_sigma: m.v_sigma,
         weight: vec![1.0; n],
         a,
@@ -492,7 +487,6 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
         blocks,
         friction_velocity,
         velocity_scale: vpeak,
-        leak_velocity_min,
         measurement: m.summary,
         split_method,
     })

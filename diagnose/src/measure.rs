@@ -21,6 +21,8 @@
 //! (d/dv E[sgn(v + e)] = √(2/π)/σ at 0).
 
 use nalgebra::{Matrix4, Vector4};
+
+use crate::stats::median;
 use serde::Serialize;
 
 /// √(π/2): the leak velocity that matches the slope of a Gaussian-smoothed sign at zero,
@@ -90,29 +92,15 @@ fn local_cubic(t: &[f64], y: &[f64], half: &[usize], run: &[(usize, usize)]) -> 
 
 /// White-noise standard deviation of a channel from its local-fit residuals (robust).
 fn noise_sigma(y: &[f64], fit: &LocalFit) -> f64 {
-    let mut z: Vec<f64> = y
+    let z: Vec<f64> = y
         .iter()
         .zip(&fit.value)
         .zip(&fit.leverage)
         .filter(|(_, h)| **h < 0.95)
         .map(|((a, b), h)| (a - b).powi(2) / (1.0 - h))
         .collect();
-    if z.is_empty() {
-        return 0.0;
-    }
-    let m = z.len() / 2;
-    let (_, med, _) = z.select_nth_unstable_by(m, f64::total_cmp);
     // Median of χ²₁ is 0.4549.
-    (*med / 0.454_936_4).sqrt()
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    let m = v.len() / 2;
-    let (_, x, _) = v.select_nth_unstable_by(m, f64::total_cmp);
-    *x
+    (median(z) / 0.454_936_4).sqrt()
 }
 
 /// A stretch where one channel holds exactly one value (clipped or stuck).
@@ -279,13 +267,8 @@ pub fn measure(
     velocity_derived: bool,
 ) -> Measured {
     let n = t.len();
-    let mut dts: Vec<f64> = h.iter().copied().filter(|d| *d > 0.0).collect();
-    let dt = if dts.is_empty() {
-        1e-3
-    } else {
-        let m = dts.len() / 2;
-        *dts.select_nth_unstable_by(m, f64::total_cmp).1
-    };
+    let dts: Vec<f64> = h.iter().copied().filter(|d| *d > 0.0).collect();
+    let dt = if dts.is_empty() { 1e-3 } else { median(dts) };
     let mut runs = Vec::new();
     let mut a = 0;
     for j in 1..=n {

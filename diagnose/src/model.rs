@@ -545,15 +545,14 @@ pub fn predictive_weights(d: &Prepared, base: &Fit) -> Vec<f64> {
     let nk = lay.nk;
     let leak = th[lay.leak_index()].max(0.0);
     let leak_rel = th[lay.leak_rel_index()].max(0.0);
-    let mut dev: Vec<f64> = (0..d.len())
+    let dev: Vec<f64> = (0..d.len())
         .filter(|&j| !d.excluded[j] && d.v[j].abs() > 4.0 * d.v_sigma[j])
         .map(|j| (d.f[j] - base.force[j]).abs())
         .collect();
     if dev.len() < 20 {
         return vec![1.0; d.len()];
     }
-    let m = dev.len() / 2;
-    let sf = 1.4826 * *dev.select_nth_unstable_by(m, f64::total_cmp).1;
+    let sf = 1.4826 * crate::stats::median(dev);
     let sf2 = (sf * sf).max(1e-12);
     (0..d.len())
         .map(|j| {

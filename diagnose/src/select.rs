@@ -403,7 +403,8 @@ fn holdout_blocks(d: &Prepared, force: &[f64]) -> Vec<(f64, f64, usize, f64, f64
     s.into_iter().filter(|x| x.2 > 0).collect()
 }
 
-fn holdout_cycle_sse(d: &Prepared, force: &[f64]) -> Vec<f64> {
+/// Weighted sum of squared held-out residuals per held-out block.
+fn holdout_block_sse(d: &Prepared, force: &[f64]) -> Vec<f64> {
     holdout_blocks(d, force).into_iter().map(|x| x.3).collect()
 }
 
@@ -502,22 +503,13 @@ fn judge(
     let before = current.holdout_rmse(d);
     let after = cand.holdout_rmse(d);
     let (_, z) = stats::paired_z(
-        &holdout_cycle_sse(d, &current.force),
-        &holdout_cycle_sse(d, &cand.force),
+        &holdout_block_sse(d, &current.force),
+        &holdout_block_sse(d, &cand.force),
     );
     let n_eff = stats::effective_n(current.train_n, current.rho1);
     let dp = (cand.layout.len() - current.layout.len()) as f64;
     let dbic = n_eff * (cand.train_sse / current.train_sse).ln() + dp * n_eff.ln();
-    let k = cand.layout.index(e).unwrap_or(0);
-    let ci_ok = effect_params(e).iter().enumerate().any(|(q, info)| {
-        let v = cand.theta[k + q];
-        let se = cand.se[k + q];
-        let lo = v - 1.96 * se;
-        let hi = v + 1.96 * se;
-        let excludes = lo > info.no_effect || hi < info.no_effect;
-        let physical = info.sign == 0.0 || (v - info.no_effect) * info.sign > 0.0;
-        se.is_finite() && excludes && physical
-    });
+    let ci_ok = interval_clear(&cand, e);
     let r0 = residual(d, &current.force);
     let r1 = residual(d, &cand.force);
     let s0 = region_stats(d, reg, &r0, true);

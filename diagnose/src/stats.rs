@@ -66,6 +66,16 @@ pub fn ljung_box(r: &[f64], m: usize) -> (f64, f64) {
     (q, crit)
 }
 
+/// The median of `v` (the upper one of an even count; 0 for an empty vector), by selection
+/// in place (no full sort).
+pub fn median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let m = v.len() / 2;
+    *v.select_nth_unstable_by(m, f64::total_cmp).1
+}
+
 /// Quantile of the standard normal distribution (Acklam's rational approximation,
 /// relative error below 1.2e-9).
 pub fn normal_quantile(p: f64) -> f64 {
