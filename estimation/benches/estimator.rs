@@ -8,6 +8,7 @@
 //! * `estimator update + at_current` — what the node does per sample for publishing;
 //! * `health observe` — one `HealthMonitor::observe`;
 //! * `health checks (per publish)` — building every `Check` (once per /diagnostics message);
+//! * `health level (per sample)` — the worst level alone, no message formatted;
 //! * `twin + estimation + health` — model step, update, at_current and observe together.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
@@ -116,6 +117,9 @@ fn bench(c: &mut Criterion) {
     // monitor filled above.
     g.bench_function("health checks (per publish)", |b| {
         b.iter(|| black_box(health.checks()))
+    });
+    g.bench_function("health level (per sample)", |b| {
+        b.iter(|| black_box(black_box(&health).level()))
     });
 
     let mut est = YieldEstimator::new(EstimatorConfig::default(), a);

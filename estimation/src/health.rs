@@ -174,7 +174,7 @@ pub struct Observation {
 /// The state of one check.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Check {
-    /// Name, e.g. "prediction residual".
+    /// Name, e.g. "prediction residual" ([`CheckId::name`]).
     pub name: String,
     /// Level.
     pub level: Level,
@@ -182,6 +182,57 @@ pub struct Check {
     pub message: String,
     /// Key–value pairs (numbers formatted).
     pub values: Vec<(String, String)>,
+}
+
+/// The health checks, in the order [`HealthMonitor::checks`] reports them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum CheckId {
+    /// RMS of F − F̂ relative to the force range.
+    PredictionResidual,
+    /// Mean normalised innovation squared.
+    InnovationConsistency,
+    /// τ0 against the commissioned reference.
+    YieldStress,
+    /// Gas preload against the commissioned one.
+    GasPreload,
+    /// Dissipated power and temperature rise.
+    Thermal,
+    /// Sample rate and dropouts.
+    SampleRate,
+    /// Samples the estimator rejected.
+    DataQuality,
+}
+
+impl CheckId {
+    /// Every check, in report order.
+    pub const ALL: [CheckId; 7] = [
+        CheckId::PredictionResidual,
+        CheckId::InnovationConsistency,
+        CheckId::YieldStress,
+        CheckId::GasPreload,
+        CheckId::Thermal,
+        CheckId::SampleRate,
+        CheckId::DataQuality,
+    ];
+
+    /// The name reported in [`Check::name`], e.g. "prediction residual".
+    pub fn name(self) -> &'static str {
+        match self {
+            CheckId::PredictionResidual => "prediction residual",
+            CheckId::InnovationConsistency => "innovation consistency",
+            CheckId::YieldStress => "yield stress",
+            CheckId::GasPreload => "gas preload",
+            CheckId::Thermal => "thermal",
+            CheckId::SampleRate => "sample rate",
+            CheckId::DataQuality => "data quality",
+        }
+    }
+}
+
+impl std::fmt::Display for CheckId {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
 }
 
 /// Sums over one block of the sliding window.
@@ -216,6 +267,15 @@ impl Block {
             dropouts: 0,
             t_first: f64::NAN,
             t_last: f64::NAN,
+        }
+    }
+
+    /// RMS of the finite residuals; NaN without any.
+    fn residual_rms(&self) -> f64 {
+        if self.n_res > 0 {
+            (self.sum_r2 / self.n_res as f64).sqrt()
+        } else {
+            f64::NAN
         }
     }
 }
@@ -382,15 +442,6 @@ impl HealthMonitor {
         t
     }
 
-    fn stale(name: &str) -> Check {
-        Check {
-            name: name.to_string(),
-            level: Level::Stale,
-            message: "no data yet".to_string(),
-            values: Vec::new(),
-        }
-    }
-
     /// τ0_ref at a current, interpolated linearly (held at the ends).
     pub fn reference_tau0(&self, current_a: f64) -> Option<f64> {
         let r = &self.cfg.tau0_reference;
@@ -408,257 +459,547 @@ impl HealthMonitor {
         Some(a.1 + (i - a.0) / (b.0 - a.0) * (b.1 - a.1))
     }
 
-    /// The current state of every check.
+    /// The current state of every check, in the order of [`CheckId::ALL`].
     pub fn checks(&self) -> Vec<Check> {
-        let names = [
-            "prediction residual",
-            "innovation consistency",
-            "yield stress",
-            "gas preload",
-            "thermal",
-            "sample rate",
-            "data quality",
-        ];
-        let Some(last) = self.last else {
-            return names.iter().map(|n| Self::stale(n)).collect();
+        let Some(f) = self.findings() else {
+            return CheckId::ALL.into_iter().map(stale).collect();
         };
-        let t = self.totals();
-        let kv = |k: &str, v: String| (k.to_string(), v);
-        let mut out = Vec::with_capacity(names.len());
-
-        // Prediction residual.
-        let rms = if t.n_res > 0 {
-            (t.sum_r2 / t.n_res as f64).sqrt()
-        } else {
-            f64::NAN
-        };
-        let range = t.f_max - t.f_min;
-        let norm = rms / range;
-        out.push(if norm.is_finite() {
-            let level = self.cfg.residual.level(norm);
-            Check {
-                name: names[0].into(),
-                level,
-                message: format!(
-                    "residual RMS {:.1} N is {:.1} % of the force range {:.0} N",
-                    rms,
-                    100.0 * norm,
-                    range
-                ),
-                values: vec![
-                    kv("rms_n", format!("{rms:.3}")),
-                    kv("force_range_n", format!("{range:.3}")),
-                    kv("normalised", format!("{norm:.5}")),
-                    kv("warn", format!("{}", self.cfg.residual.warn)),
-                    kv("error", format!("{}", self.cfg.residual.error)),
-                ],
-            }
-        } else {
-            Self::stale(names[0])
-        });
-
-        // Innovation consistency (NIS).
-        let sigma = self.cfg.force_noise_std_n;
-        let nis = rms * rms / (sigma * sigma);
-        out.push(if nis.is_finite() {
-            Check {
-                name: names[1].into(),
-                level: self.cfg.nis.level(nis),
-                message: format!(
-                    "mean normalised innovation squared {:.2} over {} samples (≈ 1 if consistent, σ_F = {} N)",
-                    nis, t.n_res, sigma
-                ),
-                values: vec![
-                    kv("mean_nis", format!("{nis:.4}")),
-                    kv("samples", t.n_res.to_string()),
-                    kv("force_noise_std_n", format!("{sigma}")),
-                ],
-            }
-        } else {
-            Self::stale(names[1])
-        });
-
-        // Yield stress against the reference.
-        out.push(match (self.tau0_smoothed, last.estimate) {
-            (_, None) | (None, _) => Check {
-                name: names[2].into(),
-                level: Level::Ok,
-                message: "no estimate at the present current yet".into(),
-                values: vec![kv("current_a", format!("{:.3}", last.current_a))],
-            },
-            (Some(e), Some(_)) => match self.reference_tau0(e.current_a) {
-                Some(r) if r >= self.cfg.tau0_min_reference_pa => {
-                    let change = (e.tau0_pa - r) / r;
-                    let judged =
-                        e.tau0_std_pa <= self.cfg.tau0_max_relative_std * e.tau0_pa.abs();
-                    let level = if judged {
-                        self.cfg.tau0_change.level(change.abs())
-                    } else {
-                        Level::Ok
-                    };
-                    Check {
-                        name: names[2].into(),
-                        level,
-                        message: format!(
-                            "τ0 {:.1} ± {:.1} kPa at {:.2} A, {:+.1} % from the reference {:.1} kPa",
-                            e.tau0_pa / 1e3,
-                            e.tau0_std_pa / 1e3,
-                            e.current_a,
-                            100.0 * change,
-                            r / 1e3
-                        ),
-                        values: vec![
-                            kv("current_a", format!("{:.4}", e.current_a)),
-                            kv("tau0_pa", format!("{:.1}", e.tau0_pa)),
-                            kv("tau0_std_pa", format!("{:.1}", e.tau0_std_pa)),
-                            kv("tau0_reference_pa", format!("{r:.1}")),
-                            kv("relative_change", format!("{change:.5}")),
-                        ],
-                    }
-                }
-                _ => Check {
-                    name: names[2].into(),
-                    level: Level::Ok,
-                    message: format!(
-                        "τ0 {:.1} ± {:.1} kPa at {:.2} A (no reference to compare with)",
-                        e.tau0_pa / 1e3,
-                        e.tau0_std_pa / 1e3,
-                        e.current_a
-                    ),
-                    values: vec![
-                        kv("current_a", format!("{:.4}", e.current_a)),
-                        kv("tau0_pa", format!("{:.1}", e.tau0_pa)),
-                        kv("tau0_std_pa", format!("{:.1}", e.tau0_std_pa)),
-                    ],
-                },
-            },
-        });
-
-        // Gas preload.
-        out.push(
-            match (self.gas_preload_pa, self.cfg.gas_preload_reference_pa) {
-                (Some(p), Some(r)) if r > 0.0 => {
-                    let loss = (r - p) / r;
-                    Check {
-                        name: names[3].into(),
-                        level: self.cfg.gas_preload_loss.level(loss),
-                        message: format!(
-                            "gas preload {:.2} MPa, {:.1} % below the commissioned {:.2} MPa",
-                            p / 1e6,
-                            100.0 * loss,
-                            r / 1e6
-                        ),
-                        values: vec![
-                            kv("gas_preload_pa", format!("{p:.0}")),
-                            kv("reference_pa", format!("{r:.0}")),
-                            kv("relative_loss", format!("{loss:.5}")),
-                        ],
-                    }
-                }
-                (Some(p), _) => Check {
-                    name: names[3].into(),
-                    level: Level::Ok,
-                    message: format!("gas preload {:.2} MPa (no reference)", p / 1e6),
-                    values: vec![kv("gas_preload_pa", format!("{p:.0}"))],
-                },
-                (None, _) => Check {
-                    name: names[3].into(),
-                    level: Level::Ok,
-                    message: "no gas preload estimate (model without a gas spring)".into(),
-                    values: Vec::new(),
-                },
-            },
-        );
-
-        // Thermal.
-        let mean_power = if t.n > 0 {
-            t.sum_power / t.n as f64
-        } else {
-            0.0
-        };
-        let rise = self.temperature_rise_k.max(self.recorded_rise_k);
-        out.push(Check {
-            name: names[4].into(),
-            level: self.cfg.temperature_rise_k.level(rise),
-            message: format!(
-                "mean dissipated power {:.1} W; fluid temperature rise {:.1} K (lumped estimate {:.1} K, model/sensor {:.1} K)",
-                mean_power, rise, self.temperature_rise_k, self.recorded_rise_k
-            ),
-            values: vec![
-                kv("mean_power_w", format!("{mean_power:.3}")),
-                kv("temperature_rise_k", format!("{rise:.3}")),
-                kv("estimated_rise_k", format!("{:.3}", self.temperature_rise_k)),
-                kv("recorded_rise_k", format!("{:.3}", self.recorded_rise_k)),
-            ],
-        });
-
-        // Sample rate and dropouts.
-        let span = t.t_last - t.t_first;
-        let rate = if span > 0.0 && t.n > 1 {
-            (t.n - 1) as f64 / span
-        } else {
-            f64::NAN
-        };
-        out.push(match self.nominal_interval_s {
-            Some(nom) if rate.is_finite() => {
-                let nominal = 1.0 / nom;
-                let shortfall = 1.0 - rate / nominal;
-                let level = self
-                    .cfg
-                    .rate_shortfall
-                    .level(shortfall)
-                    .max(self.cfg.dropouts.level(t.dropouts as f64));
-                Check {
-                    name: names[5].into(),
-                    level,
-                    message: format!(
-                        "{:.1} Hz (nominal {:.1} Hz), {} dropout(s) in the last {} s",
-                        rate, nominal, t.dropouts, self.cfg.window_s
-                    ),
-                    values: vec![
-                        kv("rate_hz", format!("{rate:.3}")),
-                        kv("nominal_rate_hz", format!("{nominal:.3}")),
-                        kv("dropouts", t.dropouts.to_string()),
-                    ],
-                }
-            }
-            _ => Check {
-                name: names[5].into(),
-                level: Level::Ok,
-                message: format!("learning the nominal rate ({} samples)", self.samples),
-                values: vec![kv("dropouts", t.dropouts.to_string())],
-            },
-        });
-
-        // Data quality.
-        let frac = if t.n > 0 {
-            t.rejected as f64 / t.n as f64
-        } else {
-            0.0
-        };
-        out.push(Check {
-            name: names[6].into(),
-            level: self.cfg.rejected_fraction.level(frac),
-            message: format!(
-                "{} of {} samples rejected in the last {} s",
-                t.rejected, t.n, self.cfg.window_s
-            ),
-            values: vec![
-                kv("rejected", t.rejected.to_string()),
-                kv("samples", t.n.to_string()),
-                kv("rejected_fraction", format!("{frac:.6}")),
-            ],
-        });
-        out
+        let cfg = &self.cfg;
+        vec![
+            report(f.residual.as_ref(), cfg),
+            report(f.innovation.as_ref(), cfg),
+            report(Some(&f.yield_stress), cfg),
+            report(Some(&f.gas_preload), cfg),
+            report(Some(&f.thermal), cfg),
+            report(Some(&f.sample_rate), cfg),
+            report(Some(&f.data_quality), cfg),
+        ]
     }
 
-    /// The worst level of the checks.
+    /// The worst level of the checks: the level of [`HealthMonitor::checks`] without
+    /// formatting any message (no allocation; cheap enough to ask after every sample).
     pub fn level(&self) -> Level {
-        self.checks()
-            .iter()
-            .map(|c| c.level)
-            .max()
-            .unwrap_or(Level::Stale)
+        let Some(f) = self.findings() else {
+            return Level::Stale;
+        };
+        let cfg = &self.cfg;
+        [
+            level_of(f.residual.as_ref(), cfg),
+            level_of(f.innovation.as_ref(), cfg),
+            f.yield_stress.level(cfg),
+            f.gas_preload.level(cfg),
+            f.thermal.level(cfg),
+            f.sample_rate.level(cfg),
+            f.data_quality.level(cfg),
+        ]
+        .into_iter()
+        .fold(Level::Ok, Level::max)
+    }
+
+    /// What every check finds now; none before the first observation.
+    fn findings(&self) -> Option<Findings> {
+        let last = self.last?;
+        let w = self.totals();
+        Some(Findings {
+            residual: self.residual(&w),
+            innovation: self.innovation(&w),
+            yield_stress: self.yield_stress(&last),
+            gas_preload: self.gas_preload(),
+            thermal: self.thermal(&w),
+            sample_rate: self.sample_rate(&w),
+            data_quality: self.data_quality(&w),
+        })
+    }
+
+    /// Prediction residual over the window; none (STALE) without a finite ratio.
+    fn residual(&self, w: &Block) -> Option<Residual> {
+        let rms_n = w.residual_rms();
+        let range_n = w.f_max - w.f_min;
+        let normalised = rms_n / range_n;
+        normalised.is_finite().then_some(Residual {
+            rms_n,
+            range_n,
+            normalised,
+        })
+    }
+
+    /// Mean NIS over the window; none (STALE) while it is not finite.
+    fn innovation(&self, w: &Block) -> Option<Innovation> {
+        let rms = w.residual_rms();
+        let sigma_n = self.cfg.force_noise_std_n;
+        let mean_nis = rms * rms / (sigma_n * sigma_n);
+        mean_nis.is_finite().then_some(Innovation {
+            mean_nis,
+            samples: w.n_res,
+            sigma_n,
+        })
+    }
+
+    /// The smoothed τ0 estimate against the reference at its current.
+    fn yield_stress(&self, last: &Observation) -> YieldStress {
+        let (Some(e), Some(_)) = (self.tau0_smoothed, last.estimate) else {
+            return YieldStress::NoEstimate {
+                current_a: last.current_a,
+            };
+        };
+        match self.reference_tau0(e.current_a) {
+            Some(r) if r >= self.cfg.tau0_min_reference_pa => YieldStress::Compared {
+                estimate: e,
+                reference_pa: r,
+                change: (e.tau0_pa - r) / r,
+                judged: e.tau0_std_pa <= self.cfg.tau0_max_relative_std * e.tau0_pa.abs(),
+            },
+            _ => YieldStress::Unreferenced(e),
+        }
+    }
+
+    /// The smoothed gas preload against the commissioned one.
+    fn gas_preload(&self) -> GasPreload {
+        match (self.gas_preload_pa, self.cfg.gas_preload_reference_pa) {
+            (Some(p), Some(r)) if r > 0.0 => GasPreload::Compared {
+                preload_pa: p,
+                reference_pa: r,
+                loss: (r - p) / r,
+            },
+            (Some(p), _) => GasPreload::Unreferenced { preload_pa: p },
+            (None, _) => GasPreload::NoEstimate,
+        }
+    }
+
+    /// Dissipated power over the window and the temperature rise.
+    fn thermal(&self, w: &Block) -> Thermal {
+        Thermal {
+            mean_power_w: if w.n > 0 {
+                w.sum_power / w.n as f64
+            } else {
+                0.0
+            },
+            rise_k: self.temperature_rise_k.max(self.recorded_rise_k),
+            estimated_rise_k: self.temperature_rise_k,
+            recorded_rise_k: self.recorded_rise_k,
+        }
+    }
+
+    /// The rate over the window against the nominal one, and the dropouts.
+    fn sample_rate(&self, w: &Block) -> SampleRate {
+        let span = w.t_last - w.t_first;
+        let rate_hz = if span > 0.0 && w.n > 1 {
+            (w.n - 1) as f64 / span
+        } else {
+            f64::NAN
+        };
+        match self.nominal_interval_s {
+            Some(nom) if rate_hz.is_finite() => SampleRate::Measured {
+                rate_hz,
+                nominal_hz: 1.0 / nom,
+                dropouts: w.dropouts,
+            },
+            _ => SampleRate::Learning {
+                samples: self.samples,
+                dropouts: w.dropouts,
+            },
+        }
+    }
+
+    /// Rejected samples in the window.
+    fn data_quality(&self, w: &Block) -> DataQuality {
+        DataQuality {
+            rejected: w.rejected,
+            samples: w.n,
+            fraction: if w.n > 0 {
+                w.rejected as f64 / w.n as f64
+            } else {
+                0.0
+            },
+        }
+    }
+}
+
+/// What every check found after the last observation, in numbers.
+struct Findings {
+    residual: Option<Residual>,
+    innovation: Option<Innovation>,
+    yield_stress: YieldStress,
+    gas_preload: GasPreload,
+    thermal: Thermal,
+    sample_rate: SampleRate,
+    data_quality: DataQuality,
+}
+
+/// What one check found, in numbers: enough to judge its level without formatting
+/// anything, and to write its message and key–values when a [`Check`] is asked for.
+trait Finding {
+    /// The check.
+    const ID: CheckId;
+    /// The level under the thresholds of `cfg`.
+    fn level(&self, cfg: &HealthConfig) -> Level;
+    /// One line for people.
+    fn message(&self, cfg: &HealthConfig) -> String;
+    /// Key–value pairs (numbers formatted).
+    fn values(&self, cfg: &HealthConfig) -> Vec<(String, String)>;
+}
+
+/// The level of a finding; none (no data) is STALE.
+fn level_of<F: Finding>(f: Option<&F>, cfg: &HealthConfig) -> Level {
+    f.map_or(Level::Stale, |f| f.level(cfg))
+}
+
+/// The [`Check`] of a finding; none (no data) is STALE.
+fn report<F: Finding>(f: Option<&F>, cfg: &HealthConfig) -> Check {
+    match f {
+        Some(f) => Check {
+            name: F::ID.name().to_string(),
+            level: f.level(cfg),
+            message: f.message(cfg),
+            values: f.values(cfg),
+        },
+        None => stale(F::ID),
+    }
+}
+
+/// A check without data.
+fn stale(id: CheckId) -> Check {
+    Check {
+        name: id.name().to_string(),
+        level: Level::Stale,
+        message: "no data yet".to_string(),
+        values: Vec::new(),
+    }
+}
+
+fn kv(k: &str, v: String) -> (String, String) {
+    (k.to_string(), v)
+}
+
+/// Prediction residual: RMS of F − F̂ against the range of F in the window.
+struct Residual {
+    rms_n: f64,
+    range_n: f64,
+    normalised: f64,
+}
+
+impl Finding for Residual {
+    const ID: CheckId = CheckId::PredictionResidual;
+
+    fn level(&self, cfg: &HealthConfig) -> Level {
+        cfg.residual.level(self.normalised)
+    }
+
+    fn message(&self, _: &HealthConfig) -> String {
+        format!(
+            "residual RMS {:.1} N is {:.1} % of the force range {:.0} N",
+            self.rms_n,
+            100.0 * self.normalised,
+            self.range_n
+        )
+    }
+
+    fn values(&self, cfg: &HealthConfig) -> Vec<(String, String)> {
+        vec![
+            kv("rms_n", format!("{:.3}", self.rms_n)),
+            kv("force_range_n", format!("{:.3}", self.range_n)),
+            kv("normalised", format!("{:.5}", self.normalised)),
+            kv("warn", format!("{}", cfg.residual.warn)),
+            kv("error", format!("{}", cfg.residual.error)),
+        ]
+    }
+}
+
+/// Innovation consistency: mean NIS (F − F̂)²/σ_F² over the window.
+struct Innovation {
+    mean_nis: f64,
+    samples: u64,
+    sigma_n: f64,
+}
+
+impl Finding for Innovation {
+    const ID: CheckId = CheckId::InnovationConsistency;
+
+    fn level(&self, cfg: &HealthConfig) -> Level {
+        cfg.nis.level(self.mean_nis)
+    }
+
+    fn message(&self, _: &HealthConfig) -> String {
+        format!(
+            "mean normalised innovation squared {:.2} over {} samples (≈ 1 if consistent, σ_F = {} N)",
+            self.mean_nis, self.samples, self.sigma_n
+        )
+    }
+
+    fn values(&self, _: &HealthConfig) -> Vec<(String, String)> {
+        vec![
+            kv("mean_nis", format!("{:.4}", self.mean_nis)),
+            kv("samples", self.samples.to_string()),
+            kv("force_noise_std_n", format!("{}", self.sigma_n)),
+        ]
+    }
+}
+
+/// Yield stress: the τ0 estimate against the commissioned reference.
+enum YieldStress {
+    /// No estimate at the present current.
+    NoEstimate { current_a: f64 },
+    /// An estimate with no usable reference at its current.
+    Unreferenced(YieldEstimate),
+    /// An estimate and its reference; `judged`: precise enough to be judged.
+    Compared {
+        estimate: YieldEstimate,
+        reference_pa: f64,
+        change: f64,
+        judged: bool,
+    },
+}
+
+impl Finding for YieldStress {
+    const ID: CheckId = CheckId::YieldStress;
+
+    fn level(&self, cfg: &HealthConfig) -> Level {
+        match *self {
+            YieldStress::Compared {
+                change,
+                judged: true,
+                ..
+            } => cfg.tau0_change.level(change.abs()),
+            _ => Level::Ok,
+        }
+    }
+
+    fn message(&self, _: &HealthConfig) -> String {
+        match *self {
+            YieldStress::NoEstimate { .. } => "no estimate at the present current yet".into(),
+            YieldStress::Unreferenced(e) => format!(
+                "τ0 {:.1} ± {:.1} kPa at {:.2} A (no reference to compare with)",
+                e.tau0_pa / 1e3,
+                e.tau0_std_pa / 1e3,
+                e.current_a
+            ),
+            YieldStress::Compared {
+                estimate: e,
+                reference_pa: r,
+                change,
+                ..
+            } => format!(
+                "τ0 {:.1} ± {:.1} kPa at {:.2} A, {:+.1} % from the reference {:.1} kPa",
+                e.tau0_pa / 1e3,
+                e.tau0_std_pa / 1e3,
+                e.current_a,
+                100.0 * change,
+                r / 1e3
+            ),
+        }
+    }
+
+    fn values(&self, _: &HealthConfig) -> Vec<(String, String)> {
+        let estimate = |e: &YieldEstimate| {
+            vec![
+                kv("current_a", format!("{:.4}", e.current_a)),
+                kv("tau0_pa", format!("{:.1}", e.tau0_pa)),
+                kv("tau0_std_pa", format!("{:.1}", e.tau0_std_pa)),
+            ]
+        };
+        match self {
+            YieldStress::NoEstimate { current_a } => {
+                vec![kv("current_a", format!("{current_a:.3}"))]
+            }
+            YieldStress::Unreferenced(e) => estimate(e),
+            YieldStress::Compared {
+                estimate: e,
+                reference_pa: r,
+                change,
+                ..
+            } => {
+                let mut v = estimate(e);
+                v.push(kv("tau0_reference_pa", format!("{r:.1}")));
+                v.push(kv("relative_change", format!("{change:.5}")));
+                v
+            }
+        }
+    }
+}
+
+/// Gas preload: the estimate against the commissioned one.
+enum GasPreload {
+    /// No estimate (a model without a gas spring).
+    NoEstimate,
+    /// An estimate, no reference.
+    Unreferenced { preload_pa: f64 },
+    /// An estimate and its relative loss from the reference.
+    Compared {
+        preload_pa: f64,
+        reference_pa: f64,
+        loss: f64,
+    },
+}
+
+impl Finding for GasPreload {
+    const ID: CheckId = CheckId::GasPreload;
+
+    fn level(&self, cfg: &HealthConfig) -> Level {
+        match *self {
+            GasPreload::Compared { loss, .. } => cfg.gas_preload_loss.level(loss),
+            _ => Level::Ok,
+        }
+    }
+
+    fn message(&self, _: &HealthConfig) -> String {
+        match *self {
+            GasPreload::NoEstimate => "no gas preload estimate (model without a gas spring)".into(),
+            GasPreload::Unreferenced { preload_pa } => {
+                format!("gas preload {:.2} MPa (no reference)", preload_pa / 1e6)
+            }
+            GasPreload::Compared {
+                preload_pa,
+                reference_pa,
+                loss,
+            } => format!(
+                "gas preload {:.2} MPa, {:.1} % below the commissioned {:.2} MPa",
+                preload_pa / 1e6,
+                100.0 * loss,
+                reference_pa / 1e6
+            ),
+        }
+    }
+
+    fn values(&self, _: &HealthConfig) -> Vec<(String, String)> {
+        match *self {
+            GasPreload::NoEstimate => Vec::new(),
+            GasPreload::Unreferenced { preload_pa } => {
+                vec![kv("gas_preload_pa", format!("{preload_pa:.0}"))]
+            }
+            GasPreload::Compared {
+                preload_pa,
+                reference_pa,
+                loss,
+            } => vec![
+                kv("gas_preload_pa", format!("{preload_pa:.0}")),
+                kv("reference_pa", format!("{reference_pa:.0}")),
+                kv("relative_loss", format!("{loss:.5}")),
+            ],
+        }
+    }
+}
+
+/// Thermal: mean dissipated power and the fluid temperature rise.
+struct Thermal {
+    mean_power_w: f64,
+    /// The larger of the two below.
+    rise_k: f64,
+    estimated_rise_k: f64,
+    recorded_rise_k: f64,
+}
+
+impl Finding for Thermal {
+    const ID: CheckId = CheckId::Thermal;
+
+    fn level(&self, cfg: &HealthConfig) -> Level {
+        cfg.temperature_rise_k.level(self.rise_k)
+    }
+
+    fn message(&self, _: &HealthConfig) -> String {
+        format!(
+            "mean dissipated power {:.1} W; fluid temperature rise {:.1} K (lumped estimate {:.1} K, model/sensor {:.1} K)",
+            self.mean_power_w, self.rise_k, self.estimated_rise_k, self.recorded_rise_k
+        )
+    }
+
+    fn values(&self, _: &HealthConfig) -> Vec<(String, String)> {
+        vec![
+            kv("mean_power_w", format!("{:.3}", self.mean_power_w)),
+            kv("temperature_rise_k", format!("{:.3}", self.rise_k)),
+            kv("estimated_rise_k", format!("{:.3}", self.estimated_rise_k)),
+            kv("recorded_rise_k", format!("{:.3}", self.recorded_rise_k)),
+        ]
+    }
+}
+
+/// Sample rate: the measured rate against the nominal one, and dropouts.
+enum SampleRate {
+    /// The nominal rate is not known yet (or no rate over the window).
+    Learning { samples: u64, dropouts: u64 },
+    /// Rate and nominal rate.
+    Measured {
+        rate_hz: f64,
+        nominal_hz: f64,
+        dropouts: u64,
+    },
+}
+
+impl Finding for SampleRate {
+    const ID: CheckId = CheckId::SampleRate;
+
+    fn level(&self, cfg: &HealthConfig) -> Level {
+        match *self {
+            SampleRate::Learning { .. } => Level::Ok,
+            SampleRate::Measured {
+                rate_hz,
+                nominal_hz,
+                dropouts,
+            } => cfg
+                .rate_shortfall
+                .level(1.0 - rate_hz / nominal_hz)
+                .max(cfg.dropouts.level(dropouts as f64)),
+        }
+    }
+
+    fn message(&self, cfg: &HealthConfig) -> String {
+        match *self {
+            SampleRate::Learning { samples, .. } => {
+                format!("learning the nominal rate ({samples} samples)")
+            }
+            SampleRate::Measured {
+                rate_hz,
+                nominal_hz,
+                dropouts,
+            } => format!(
+                "{:.1} Hz (nominal {:.1} Hz), {} dropout(s) in the last {} s",
+                rate_hz, nominal_hz, dropouts, cfg.window_s
+            ),
+        }
+    }
+
+    fn values(&self, _: &HealthConfig) -> Vec<(String, String)> {
+        match *self {
+            SampleRate::Learning { dropouts, .. } => vec![kv("dropouts", dropouts.to_string())],
+            SampleRate::Measured {
+                rate_hz,
+                nominal_hz,
+                dropouts,
+            } => vec![
+                kv("rate_hz", format!("{rate_hz:.3}")),
+                kv("nominal_rate_hz", format!("{nominal_hz:.3}")),
+                kv("dropouts", dropouts.to_string()),
+            ],
+        }
+    }
+}
+
+/// Data quality: samples the estimator rejected in the window.
+struct DataQuality {
+    rejected: u64,
+    samples: u64,
+    fraction: f64,
+}
+
+impl Finding for DataQuality {
+    const ID: CheckId = CheckId::DataQuality;
+
+    fn level(&self, cfg: &HealthConfig) -> Level {
+        cfg.rejected_fraction.level(self.fraction)
+    }
+
+    fn message(&self, cfg: &HealthConfig) -> String {
+        format!(
+            "{} of {} samples rejected in the last {} s",
+            self.rejected, self.samples, cfg.window_s
+        )
+    }
+
+    fn values(&self, _: &HealthConfig) -> Vec<(String, String)> {
+        vec![
+            kv("rejected", self.rejected.to_string()),
+            kv("samples", self.samples.to_string()),
+            kv("rejected_fraction", format!("{:.6}", self.fraction)),
+        ]
     }
 }
 
@@ -681,6 +1022,57 @@ mod tests {
         let m = HealthMonitor::new(HealthConfig::default());
         assert_eq!(m.level(), Level::Stale);
         assert_eq!(m.checks().len(), 7);
+    }
+
+    #[test]
+    fn checks_come_in_the_order_of_their_ids() {
+        let mut m = HealthMonitor::new(HealthConfig::default());
+        let names = |m: &HealthMonitor| m.checks().into_iter().map(|c| c.name).collect::<Vec<_>>();
+        let ids: Vec<String> = CheckId::ALL.iter().map(|id| id.to_string()).collect();
+        assert_eq!(names(&m), ids);
+        m.observe(&Observation {
+            time_s: 0.0,
+            ..Default::default()
+        });
+        assert_eq!(names(&m), ids);
+    }
+
+    #[test]
+    fn level_is_the_worst_check_level() {
+        let mut m = HealthMonitor::new(HealthConfig {
+            tau0_reference: vec![(0.0, 10e3), (1.0, 20e3)],
+            gas_preload_reference_pa: Some(2e6),
+            nominal_rate_hz: Some(1000.0),
+            ..Default::default()
+        });
+        let mut seen = std::collections::BTreeSet::new();
+        for k in 0..5000u32 {
+            let x = f64::from(k);
+            let drift = if k > 2500 { 0.5 * x } else { 0.0 };
+            m.observe(&Observation {
+                time_s: x * if k % 500 == 0 { 3e-3 } else { 1e-3 },
+                force_n: 1000.0 * (x * 0.01).sin() + drift,
+                predicted_force_n: 1000.0 * (x * 0.01).sin(),
+                current_a: 0.5,
+                dissipated_power_w: 20.0 * x.sqrt(),
+                fluid_temperature_c: 25.0,
+                ambient_temperature_c: 25.0,
+                estimate: (k % 3 != 0).then_some(YieldEstimate {
+                    current_a: 0.5,
+                    tau0_pa: 15e3 - x,
+                    tau0_std_pa: 500.0,
+                }),
+                rejected: k > 3000 && k % 101 == 0,
+                gas_preload_pa: (k > 1000).then_some(2e6 - 100.0 * x),
+            });
+            let worst = m.checks().iter().map(|c| c.level).max().unwrap();
+            assert_eq!(m.level(), worst, "sample {k}: {:?}", m.checks());
+            seen.insert(worst);
+        }
+        assert!(
+            seen.contains(&Level::Ok) && seen.contains(&Level::Error),
+            "{seen:?}"
+        );
     }
 
     #[test]

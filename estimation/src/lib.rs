@@ -14,7 +14,7 @@ pub mod health;
 pub mod identify;
 pub mod online;
 
-pub use health::{Check, HealthConfig, HealthMonitor, Level, Observation};
+pub use health::{Check, CheckId, HealthConfig, HealthMonitor, Level, Observation};
 pub use online::{
     force_per_pa, EstimatorConfig, EstimatorSample, RejectReason, UpdateOutcome, YieldEstimate,
     YieldEstimator,
