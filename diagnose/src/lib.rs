@@ -25,5 +25,5 @@ pub use calibrate::Calibration;
 pub use data::{DataError, Signals};
 pub use report::Report;
 pub use select::{
-    diagnose, diagnose_with_progress, Diagnosis, Options, Progress, Selector, Thresholds,
+    diagnose, diagnose_with_progress, AcceptanceThresholds, Diagnosis, Options, Progress, Selector,
 };

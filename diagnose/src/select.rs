@@ -19,7 +19,7 @@ pub enum Selector {
     /// ([`crate::calibrate`]).
     #[default]
     Calibrated,
-    /// The four hand-set rules of the first version ([`Thresholds`]).
+    /// The four hand-set rules of the first version ([`AcceptanceThresholds`]).
     Rules,
     /// SINDy-style sparse regression of the baseline residual ([`crate::sindy`]), the
     /// comparison method.
@@ -49,7 +49,7 @@ pub struct Options {
     /// How candidates are accepted.
     pub selector: Selector,
     /// The hand-set rules (the `rules` selector; also reported as checks by the others).
-    pub thresholds: Thresholds,
+    pub thresholds: AcceptanceThresholds,
     /// The bootstrap calibration (the `calibrated` selector).
     pub calibration: Calibration,
 }
@@ -67,9 +67,9 @@ pub struct Progress {
     pub total: usize,
 }
 
-/// Acceptance thresholds (docs/diagnose.md explains each).
+/// Acceptance thresholds of the `rules` selector (docs/diagnose.md explains each).
 #[derive(Debug, Clone, PartialEq)]
-pub struct Thresholds {
+pub struct AcceptanceThresholds {
     /// Smallest relative fall of the held-out RMS.
     pub min_holdout_drop: f64,
     /// Smallest paired z of the per-stroke held-out improvement.
@@ -85,7 +85,7 @@ pub struct Thresholds {
     pub tie_fraction: f64,
 }
 
-impl Default for Thresholds {
+impl Default for AcceptanceThresholds {
     fn default() -> Self {
         Self {
             min_holdout_drop: 0.005,
@@ -289,7 +289,7 @@ fn region_stats(d: &Prepared, reg: &Regions, r: &[f64], holdout_only: bool) -> R
 }
 
 /// Flagged regions (indices; `usize::MAX` stands for the whole record).
-fn flagged(d: &Prepared, reg: &Regions, r: &[f64], th: &Thresholds) -> Vec<usize> {
+fn flagged(d: &Prepared, reg: &Regions, r: &[f64], th: &AcceptanceThresholds) -> Vec<usize> {
     let s = region_stats(d, reg, r, false);
     let n = d.len();
     let mut out = vec![usize::MAX];
@@ -303,7 +303,12 @@ fn flagged(d: &Prepared, reg: &Regions, r: &[f64], th: &Thresholds) -> Vec<usize
     out
 }
 
-fn mismatch_list(d: &Prepared, reg: &Regions, r: &[f64], th: &Thresholds) -> Vec<Mismatch> {
+fn mismatch_list(
+    d: &Prepared,
+    reg: &Regions,
+    r: &[f64],
+    th: &AcceptanceThresholds,
+) -> Vec<Mismatch> {
     let s = region_stats(d, reg, r, false);
     let n = d.len() as f64;
     let mut list: Vec<Mismatch> = (0..reg.names.len())
@@ -498,7 +503,7 @@ fn judge(
     flags: &[usize],
     cand: Fit,
     e: Effect,
-    th: &Thresholds,
+    th: &AcceptanceThresholds,
 ) -> Judged {
     let before = current.holdout_rmse(d);
     let after = cand.holdout_rmse(d);
@@ -625,7 +630,7 @@ fn fit_and_judge(
     current: &Fit,
     remaining: &[Effect],
     flags: &[usize],
-    th: &Thresholds,
+    th: &AcceptanceThresholds,
 ) -> Vec<Judged> {
     std::thread::scope(|scope| {
         let handles: Vec<_> = remaining

@@ -52,14 +52,14 @@ impl Level {
 /// A pair of thresholds: WARN at `warn` and beyond, ERROR at `error` and beyond.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct Thresholds {
+pub struct HealthThresholds {
     /// WARN threshold.
     pub warn: f64,
     /// ERROR threshold.
     pub error: f64,
 }
 
-impl Thresholds {
+impl HealthThresholds {
     const fn new(warn: f64, error: f64) -> Self {
         Self { warn, error }
     }
@@ -83,16 +83,16 @@ pub struct HealthConfig {
     /// Length of the sliding window of every windowed check \[s\]. Default 2 s.
     pub window_s: f64,
     /// Prediction residual RMS / force range in the window. Default WARN 0.05, ERROR 0.15.
-    pub residual: Thresholds,
+    pub residual: HealthThresholds,
     /// Force sensor noise σ_F used by the innovation test \[N\]. Default 10 N.
     pub force_noise_std_n: f64,
     /// Mean NIS over the window. Default WARN 4, ERROR 25 (a consistent model gives ≈ 1).
-    pub nis: Thresholds,
+    pub nis: HealthThresholds,
     /// Commissioned reference τ0(I): (current A, τ0 Pa) pairs, ascending current. Default
     /// empty (the yield-stress check then reports OK with "no reference").
     pub tau0_reference: Vec<(f64, f64)>,
     /// Relative change |τ0 − τ0_ref|/τ0_ref. Default WARN 0.10, ERROR 0.30.
-    pub tau0_change: Thresholds,
+    pub tau0_change: HealthThresholds,
     /// The change is not judged while the estimate's relative standard deviation σ/τ0 is
     /// above this (an estimate the data do not pin down yet). Default 0.5.
     pub tau0_max_relative_std: f64,
@@ -101,47 +101,47 @@ pub struct HealthConfig {
     /// Commissioned gas preload \[Pa\]; none: the check does not apply. Default none.
     pub gas_preload_reference_pa: Option<f64>,
     /// Relative loss of gas preload (p_ref − p)/p_ref. Default WARN 0.15, ERROR 0.40.
-    pub gas_preload_loss: Thresholds,
+    pub gas_preload_loss: HealthThresholds,
     /// Lumped heat capacity of fluid and body for the temperature estimate \[J/K\]. Default 300.
     pub heat_capacity_j_per_k: f64,
     /// Heat loss conductance to ambient \[W/K\]. Default 1.5.
     pub heat_loss_w_per_k: f64,
     /// Fluid temperature rise above ambient \[K\]. Default WARN 30 K, ERROR 60 K.
-    pub temperature_rise_k: Thresholds,
+    pub temperature_rise_k: HealthThresholds,
     /// Nominal sample rate \[Hz\]; none: taken from the median interval of the first
     /// 100 samples. Default none.
     pub nominal_rate_hz: Option<f64>,
     /// Relative shortfall of the rate, 1 − rate/nominal. Default WARN 0.10, ERROR 0.50.
-    pub rate_shortfall: Thresholds,
+    pub rate_shortfall: HealthThresholds,
     /// A gap longer than this many nominal intervals is a dropout. Default 2.5.
     pub dropout_factor: f64,
     /// Dropouts in the window. Default WARN 1, ERROR 10.
-    pub dropouts: Thresholds,
+    pub dropouts: HealthThresholds,
     /// Fraction of samples rejected in the window. Default WARN 1e-9 (any), ERROR 0.05.
-    pub rejected_fraction: Thresholds,
+    pub rejected_fraction: HealthThresholds,
 }
 
 impl Default for HealthConfig {
     fn default() -> Self {
         Self {
             window_s: 2.0,
-            residual: Thresholds::new(0.05, 0.15),
+            residual: HealthThresholds::new(0.05, 0.15),
             force_noise_std_n: 10.0,
-            nis: Thresholds::new(4.0, 25.0),
+            nis: HealthThresholds::new(4.0, 25.0),
             tau0_reference: Vec::new(),
-            tau0_change: Thresholds::new(0.10, 0.30),
+            tau0_change: HealthThresholds::new(0.10, 0.30),
             tau0_max_relative_std: 0.5,
             tau0_min_reference_pa: 1000.0,
             gas_preload_reference_pa: None,
-            gas_preload_loss: Thresholds::new(0.15, 0.40),
+            gas_preload_loss: HealthThresholds::new(0.15, 0.40),
             heat_capacity_j_per_k: 300.0,
             heat_loss_w_per_k: 1.5,
-            temperature_rise_k: Thresholds::new(30.0, 60.0),
+            temperature_rise_k: HealthThresholds::new(30.0, 60.0),
             nominal_rate_hz: None,
-            rate_shortfall: Thresholds::new(0.10, 0.50),
+            rate_shortfall: HealthThresholds::new(0.10, 0.50),
             dropout_factor: 2.5,
-            dropouts: Thresholds::new(1.0, 10.0),
-            rejected_fraction: Thresholds::new(1e-9, 0.05),
+            dropouts: HealthThresholds::new(1.0, 10.0),
+            rejected_fraction: HealthThresholds::new(1e-9, 0.05),
         }
     }
 }
@@ -1009,7 +1009,7 @@ mod tests {
 
     #[test]
     fn thresholds_order_levels() {
-        let t = Thresholds::new(1.0, 2.0);
+        let t = HealthThresholds::new(1.0, 2.0);
         assert_eq!(t.level(0.5), Level::Ok);
         assert_eq!(t.level(1.0), Level::Warn);
         assert_eq!(t.level(3.0), Level::Error);
