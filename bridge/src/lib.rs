@@ -1,6 +1,6 @@
 //! mrtwin I/O.
 //!
-//! - [`recording`]: recordings in the project's CSV format (PHYSICS.md,
+//! - [`csv`]: recordings in the project's CSV format (PHYSICS.md,
 //!   "Recording format (CSV)"), read and written loss-free.
 //! - [`utfsm`]: readers for the real MR damper recordings from the UTFSM test
 //!   press (`shared/data/real/maurel-utfsm`).
@@ -9,7 +9,7 @@
 //!   features: [`ros2`] (DDS via ros2-client), [`zenoh`], [`iceoryx2`] (shared memory).
 
 pub mod bag;
-pub mod recording;
+pub mod csv;
 pub mod transport;
 pub mod utfsm;
 
@@ -20,7 +20,7 @@ pub mod ros2;
 #[cfg(feature = "zenoh")]
 pub mod zenoh;
 
-pub use recording::{
+pub use csv::{
     derive_velocity, parse_csv, read_csv, to_csv_string, write_csv, Recording, RecordingError,
     Sample,
 };

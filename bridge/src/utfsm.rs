@@ -36,7 +36,7 @@
 use std::fs;
 use std::path::Path;
 
-use crate::recording::{derive_velocity, parse_finite, Recording, RecordingError, Sample};
+use crate::csv::{derive_velocity, parse_finite, Recording, RecordingError, Sample};
 
 /// Force scaling of the raw files: N per volt.
 pub const FORCE_N_PER_VOLT: f64 = 980.665;

@@ -9,7 +9,7 @@ use ::diagnose::data::Prepared;
 use ::diagnose::report::render_markdown;
 use ::diagnose::{Diagnosis, Options, Progress, Selector, Signals};
 use anyhow::{bail, Context, Result};
-use bridge::recording::Recording;
+use bridge::csv::Recording;
 use clap::Args;
 
 use crate::plot::{write_svg, Figure, Panel, Series, PALETTE};

@@ -10,7 +10,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
-use bridge::recording::read_csv;
+use bridge::csv::read_csv;
 use clap::Args;
 use estimation::identify::{identify, Identification, TestRecord};
 use serde_json::json;

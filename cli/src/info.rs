@@ -25,7 +25,7 @@ pub fn run(args: &InfoArgs) -> Result<()> {
     if bridge::is_bag_path(&args.input) {
         return bag_info(&args.input);
     }
-    let rec = bridge::recording::read_csv(&args.input)
+    let rec = bridge::csv::read_csv(&args.input)
         .with_context(|| format!("cannot use {} as a recording", args.input.display()))?;
     print_recording(&rec, &args.input);
     Ok(())

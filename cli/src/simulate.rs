@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
-use bridge::recording::{write_csv, Recording, Sample};
+use bridge::csv::{write_csv, Recording, Sample};
 use clap::{Args, ValueEnum};
 use twin::models::{build, FluidLaw, ModelKind, ModelParams};
 use twin::stand::{run as run_stand, Noise, Programme, SimulatedSample};

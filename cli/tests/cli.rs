@@ -157,7 +157,7 @@ fn simulate_writes_a_readable_csv() {
     );
     assert_eq!(lines.count(), 1000);
 
-    let rec = bridge::recording::read_csv(&csv).expect("bridge reads it back");
+    let rec = bridge::csv::read_csv(&csv).expect("bridge reads it back");
     assert_eq!(rec.len(), 1000);
     assert!(rec.has_temperature && !rec.velocity_derived);
     let first = rec.samples[0];
@@ -249,10 +249,7 @@ fn flags_override_the_params_file_which_overrides_defaults() {
     let first_force = |extra: &[&str]| {
         let csv = dir.path("run.csv");
         ok(&short_run(&csv, extra));
-        bridge::recording::read_csv(&csv)
-            .expect("read back")
-            .samples[0]
-            .force_n
+        bridge::csv::read_csv(&csv).expect("read back").samples[0].force_n
     };
     let cases: [(&[&str], f64); 3] = [
         (&[], 2.0e6),
@@ -306,7 +303,7 @@ fn paper_writes_recordings_plots_and_summary() {
     );
 
     for model in ["direct-shear", "two-chamber"] {
-        let rec = bridge::recording::read_csv(&out.join(format!("{model}.csv"))).expect("CSV");
+        let rec = bridge::csv::read_csv(&out.join(format!("{model}.csv"))).expect("CSV");
         assert_eq!(rec.len(), 9 * 200, "{model}: 9 segments of 0.5 s at 400 Hz");
         for plot in ["fx", "fv"] {
             let svg = fs::read_to_string(out.join(format!("{model}-{plot}.svg"))).expect("SVG");
@@ -354,7 +351,7 @@ fn the_example_parameter_file_runs_every_effect_with_bodner_partom() {
         ],
     );
     ok(&o);
-    let rec = bridge::recording::read_csv(&out).expect("readable recording");
+    let rec = bridge::csv::read_csv(&out).expect("readable recording");
     let peak = rec
         .samples
         .iter()

@@ -7,7 +7,7 @@ use std::process::{Command, Output};
 
 use mrtwin_tests::TempDir;
 
-use bridge::recording::{write_csv, Recording, Sample};
+use bridge::csv::{write_csv, Recording, Sample};
 use diagnose::study::{generate, Scenario, YieldLaw};
 use twin::Effect;
 

@@ -72,7 +72,7 @@ impl SensorSample {
     }
 
     /// From a recording sample.
-    pub fn from_recording(s: &bridge::recording::Sample) -> Self {
+    pub fn from_recording(s: &bridge::csv::Sample) -> Self {
         Self {
             time_s: s.time_s,
             displacement_m: s.displacement_m,

@@ -18,12 +18,12 @@
 //!   `metadata.yaml`, bare `.mcap` files, bags of other writers (rosbag2, python `rosbags`),
 //!   files without summary or footer (a crashed recorder); topics that are not mrtwin's are
 //!   skipped and listed with their counts.
-//! * [`recording`]: a [`crate::Recording`] to and from the `sensor/sample` topic.
+//! * [`samples`]: a [`crate::Recording`] to and from the `sensor/sample` topic.
 //! * [`metadata`]: `metadata.yaml` and the QoS strings.
 
 pub mod metadata;
 pub mod reader;
-pub mod recording;
+pub mod samples;
 pub mod writer;
 
 use std::path::{Path, PathBuf};
@@ -35,9 +35,7 @@ pub use reader::{
     read_bag, BagContents, BagMessage, ChannelInfo, RawMessage, RawMessages, SkippedTopic,
     TopicSummary,
 };
-pub use recording::{
-    read_recording, recording_from_contents, write_recording, write_recording_mcap,
-};
+pub use samples::{read_recording, recording_from_contents, write_recording, write_recording_mcap};
 pub use writer::{BagCompression, BagSummary, BagWriter, BagWriterOptions};
 
 /// Schema encoding of ROS 2 message definitions in MCAP.

@@ -10,7 +10,7 @@ use std::path::Path;
 
 use msgs::{DamperSample, Header};
 
-use crate::recording::{Recording, Sample};
+use crate::csv::{Recording, Sample};
 use crate::transport::{Message, Topic};
 
 use super::reader::{read_bag, BagContents};
