@@ -5,11 +5,13 @@
 //! - [`utfsm`]: readers for the real MR damper recordings from the UTFSM test
 //!   press (`shared/data/real/maurel-utfsm`).
 //! - [`bag`]: rosbag2 directories with MCAP storage (and bare `.mcap` files).
+//! - [`qos`]: the QoS reliability shared by the ROS 2 adapter and the bags.
 //! - [`transport`]: the adapter interface of the middleware; the adapters are behind
 //!   features: [`ros2`] (DDS via ros2-client), [`zenoh`], [`iceoryx2`] (shared memory).
 
 pub mod bag;
 pub mod csv;
+pub mod qos;
 pub mod transport;
 pub mod utfsm;
 

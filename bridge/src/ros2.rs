@@ -37,15 +37,8 @@ use crate::transport::{Message, Topic, Transport, TransportError};
 
 const NAME: &str = "ros2";
 
-/// Delivery guarantee of a topic.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Reliability {
-    /// Samples may be lost; a best-effort reader matches any writer.
-    BestEffort,
-    /// Lost samples are re-sent; a reliable reader only matches reliable writers.
-    Reliable,
-}
+/// The delivery guarantee the QoS settings choose (the same type as the bags' QoS).
+pub use crate::qos::Reliability;
 
 /// QoS override of one topic (unset fields keep the default of the topic).
 #[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]

@@ -7,8 +7,9 @@ use std::time::{Duration, Instant};
 
 use bridge::bag::{
     self, read_bag, read_recording, write_recording, write_recording_mcap, BagCompression,
-    BagError, BagWriter, BagWriterOptions, Reliability,
+    BagError, BagWriter, BagWriterOptions,
 };
+use bridge::qos::Reliability;
 use bridge::transport::{Message, Topic};
 use bridge::{Recording, Sample};
 use msgs::{

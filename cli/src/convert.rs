@@ -7,7 +7,8 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
-use bridge::bag::{self, BagWriter, BagWriterOptions, RawMessages, Reliability};
+use bridge::bag::{self, BagWriter, BagWriterOptions, RawMessages};
+use bridge::qos::Reliability;
 use bridge::Recording;
 use clap::Args;
 

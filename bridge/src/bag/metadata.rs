@@ -11,6 +11,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use super::BagError;
+use crate::qos::Reliability;
 
 /// The format version we write (rosbag2 Iron; Jazzy readers accept it).
 pub const METADATA_VERSION: u32 = 8;
@@ -121,15 +122,6 @@ pub struct FileInfo {
     /// Messages in this file.
     #[serde(default)]
     pub message_count: u64,
-}
-
-/// Reliability of a publisher's QoS.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Reliability {
-    /// Reliable (rmw value 1).
-    Reliable,
-    /// Best effort (rmw value 2): sensor data.
-    BestEffort,
 }
 
 /// The `offered_qos_profiles` string rosbag2 (≤ Iron) records for one publisher: history

@@ -28,9 +28,10 @@ pub mod writer;
 
 use std::path::{Path, PathBuf};
 
+use crate::qos::Reliability;
 use crate::transport::Topic;
 
-pub use metadata::{qos_profiles_yaml, BagInfo, Reliability};
+pub use metadata::{qos_profiles_yaml, BagInfo};
 pub use reader::{
     read_bag, BagContents, BagMessage, ChannelInfo, RawMessage, RawMessages, SkippedTopic,
     TopicSummary,

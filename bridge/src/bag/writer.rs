@@ -29,6 +29,7 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
+use crate::qos::Reliability;
 use crate::transport::{Message, Topic};
 
 use super::metadata::{
@@ -36,8 +37,8 @@ use super::metadata::{
     METADATA_VERSION,
 };
 use super::{
-    qos_profiles_yaml, topic_name, topic_reliability, BagError, Reliability, MESSAGE_ENCODING,
-    PROFILE, SCHEMA_ENCODING,
+    qos_profiles_yaml, topic_name, topic_reliability, BagError, MESSAGE_ENCODING, PROFILE,
+    SCHEMA_ENCODING,
 };
 
 /// Chunk compression.
