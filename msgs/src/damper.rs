@@ -101,18 +101,18 @@ impl RosMessage for YieldEstimate {
     }
 }
 
-/// Field names of a .msg text, in order (comments and constants skipped).
-pub fn msg_field_names(msg: &str) -> Vec<String> {
-    msg.lines()
-        .map(|l| l.split('#').next().unwrap_or("").trim())
-        .filter(|l| !l.is_empty() && !l.contains('='))
-        .filter_map(|l| l.split_whitespace().nth(1).map(str::to_string))
-        .collect()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Field names of a .msg text, in order (comments and constants skipped).
+    fn msg_field_names(msg: &str) -> Vec<String> {
+        msg.lines()
+            .map(|l| l.split('#').next().unwrap_or("").trim())
+            .filter(|l| !l.is_empty() && !l.contains('='))
+            .filter_map(|l| l.split_whitespace().nth(1).map(str::to_string))
+            .collect()
+    }
 
     /// Top-level field names of `T` in serialization order, from its JSON form.
     fn serde_field_names<T: Serialize + Default>() -> Vec<String> {

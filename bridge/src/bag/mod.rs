@@ -169,15 +169,6 @@ pub fn known_topic(name: &str, type_name: &str) -> Option<Topic> {
     })
 }
 
-/// The namespace of a known topic's name: `/lab/d1/sensor/sample` → `lab/d1`.
-pub fn topic_namespace(name: &str, topic: Topic) -> String {
-    let name = name.trim_start_matches('/');
-    name.strip_suffix(topic.key())
-        .unwrap_or("")
-        .trim_end_matches('/')
-        .to_string()
-}
-
 /// The absolute bag topic name of `topic` in `namespace` (`d1` → `/d1/sensor/sample`);
 /// `/diagnostics` and `/clock` stay global.
 pub fn topic_name(namespace: &str, topic: Topic) -> String {
@@ -201,6 +192,15 @@ pub fn topic_reliability(topic: Topic) -> Reliability {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The namespace of a known topic's name: `/lab/d1/sensor/sample` → `lab/d1`.
+    fn topic_namespace(name: &str, topic: Topic) -> String {
+        let name = name.trim_start_matches('/');
+        name.strip_suffix(topic.key())
+            .unwrap_or("")
+            .trim_end_matches('/')
+            .to_string()
+    }
 
     #[test]
     fn topics_are_recognised_under_any_namespace() {
