@@ -21,7 +21,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::online::YieldEstimate;
+use crate::online::Tau0Estimate;
 
 /// Severity of a check, as in ROS `diagnostic_msgs/DiagnosticStatus`.
 #[repr(u8)]
@@ -164,7 +164,7 @@ pub struct Observation {
     /// Ambient temperature \[°C\].
     pub ambient_temperature_c: f64,
     /// The yield-stress estimate at the present current, if any.
-    pub estimate: Option<YieldEstimate>,
+    pub estimate: Option<Tau0Estimate>,
     /// The estimator rejected this sample.
     pub rejected: bool,
     /// Estimated gas preload \[Pa\], where the model has a gas spring.
@@ -294,7 +294,7 @@ pub struct HealthMonitor {
     temperature_rise_k: f64,
     recorded_rise_k: f64,
     last: Option<Observation>,
-    tau0_smoothed: Option<YieldEstimate>,
+    tau0_smoothed: Option<Tau0Estimate>,
     gas_preload_pa: Option<f64>,
     samples: u64,
 }
@@ -740,10 +740,10 @@ enum YieldStress {
     /// No estimate at the present current.
     NoEstimate { current_a: f64 },
     /// An estimate with no usable reference at its current.
-    Unreferenced(YieldEstimate),
+    Unreferenced(Tau0Estimate),
     /// An estimate and its reference; `judged`: precise enough to be judged.
     Compared {
-        estimate: YieldEstimate,
+        estimate: Tau0Estimate,
         reference_pa: f64,
         change: f64,
         judged: bool,
@@ -790,7 +790,7 @@ impl Finding for YieldStress {
     }
 
     fn values(&self, _: &HealthConfig) -> Vec<(String, String)> {
-        let estimate = |e: &YieldEstimate| {
+        let estimate = |e: &Tau0Estimate| {
             vec![
                 kv("current_a", format!("{:.4}", e.current_a)),
                 kv("tau0_pa", format!("{:.1}", e.tau0_pa)),
@@ -1057,7 +1057,7 @@ mod tests {
                 dissipated_power_w: 20.0 * x.sqrt(),
                 fluid_temperature_c: 25.0,
                 ambient_temperature_c: 25.0,
-                estimate: (k % 3 != 0).then_some(YieldEstimate {
+                estimate: (k % 3 != 0).then_some(Tau0Estimate {
                     current_a: 0.5,
                     tau0_pa: 15e3 - x,
                     tau0_std_pa: 500.0,

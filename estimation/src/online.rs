@@ -179,7 +179,7 @@ pub enum UpdateOutcome {
 
 /// τ0 at one current with its standard deviation.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct YieldEstimate {
+pub struct Tau0Estimate {
     /// Current \[A\] (the mean |I| of the samples used).
     pub current_a: f64,
     /// Yield stress τ0 \[Pa\].
@@ -335,9 +335,9 @@ impl Bin {
         self.noise_variance() * self.p[k][k] * self.sum_w2 / self.sum_w * self.inflation()
     }
 
-    fn estimate(&self, force_per_pa: f64) -> YieldEstimate {
+    fn estimate(&self, force_per_pa: f64) -> Tau0Estimate {
         let var = self.variance(0);
-        YieldEstimate {
+        Tau0Estimate {
             current_a: self.sum_i / self.sum_w,
             tau0_pa: self.theta[0] / force_per_pa,
             tau0_std_pa: var.max(0.0).sqrt() / force_per_pa,
@@ -509,12 +509,12 @@ impl YieldEstimator {
     /// τ0 at this current, interpolated linearly along the fitted curve between the bins
     /// that bracket it (or from the nearest bin within half a bin width). `None` outside the
     /// currents seen.
-    pub fn at_current(&self, current_a: f64) -> Option<YieldEstimate> {
+    pub fn at_current(&self, current_a: f64) -> Option<Tau0Estimate> {
         let i = current_a.abs();
         let half = 0.5 * self.cfg.current_bin_width_a;
         // The ready bins just below and just above i (no allocation: this runs per sample).
-        let mut below: Option<YieldEstimate> = None;
-        let mut above: Option<YieldEstimate> = None;
+        let mut below: Option<Tau0Estimate> = None;
+        let mut above: Option<Tau0Estimate> = None;
         for b in self.bins.iter().filter(|b| self.ready(b)) {
             let e = b.estimate(self.force_per_pa);
             if e.current_a <= i {
@@ -527,14 +527,14 @@ impl YieldEstimator {
         match (below, above) {
             (Some(a), Some(b)) => {
                 let w = (i - a.current_a) / (b.current_a - a.current_a);
-                Some(YieldEstimate {
+                Some(Tau0Estimate {
                     current_a: i,
                     tau0_pa: a.tau0_pa + w * (b.tau0_pa - a.tau0_pa),
                     tau0_std_pa: a.tau0_std_pa + w * (b.tau0_std_pa - a.tau0_std_pa),
                 })
             }
             (Some(e), None) | (None, Some(e)) => {
-                ((e.current_a - i).abs() <= half).then_some(YieldEstimate { current_a: i, ..e })
+                ((e.current_a - i).abs() <= half).then_some(Tau0Estimate { current_a: i, ..e })
             }
             (None, None) => None,
         }
@@ -542,7 +542,7 @@ impl YieldEstimator {
 
     /// τ0(I) over the currents seen (bins with at least `min_updates` updates), ascending
     /// current.
-    pub fn curve(&self) -> Vec<YieldEstimate> {
+    pub fn curve(&self) -> Vec<Tau0Estimate> {
         self.bins
             .iter()
             .filter(|b| self.ready(b))
@@ -593,7 +593,7 @@ pub fn batch_fit(
     samples: &[EstimatorSample],
     cfg: &EstimatorConfig,
     force_per_pa: f64,
-) -> Option<YieldEstimate> {
+) -> Option<Tau0Estimate> {
     let mut a = [[0.0; P]; P];
     let mut b = [0.0; P];
     let mut rows = Vec::new();
@@ -648,7 +648,7 @@ pub fn batch_fit(
         .collect();
     let lag1: f64 = resid.windows(2).map(|w| w[0] * w[1]).sum();
     let s2 = ssr / (m - P) as f64 * ar1_inflation(lag1, ssr);
-    Some(YieldEstimate {
+    Some(Tau0Estimate {
         current_a: sum_i / m as f64,
         tau0_pa: theta[0] / force_per_pa,
         tau0_std_pa: (s2 * inv[0][0]).sqrt() / force_per_pa,

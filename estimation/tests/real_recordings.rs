@@ -12,7 +12,7 @@ use std::path::PathBuf;
 
 use bridge::utfsm::{parse_test_name, read_preprocessed};
 use estimation::online::{
-    batch_fit, force_per_pa, EstimatorConfig, EstimatorSample, YieldEstimate, YieldEstimator,
+    batch_fit, force_per_pa, EstimatorConfig, EstimatorSample, Tau0Estimate, YieldEstimator,
 };
 use twin::models::{ModelKind, ModelParams};
 
@@ -84,8 +84,8 @@ fn online_tau0_rises_with_current_and_agrees_with_the_offline_fit() {
         };
         let mut est = YieldEstimator::new(cfg.clone(), a);
         let mut t_offset = 0.0;
-        let mut online: Vec<YieldEstimate> = Vec::new();
-        let mut offline: Vec<YieldEstimate> = Vec::new();
+        let mut online: Vec<Tau0Estimate> = Vec::new();
+        let mut offline: Vec<Tau0Estimate> = Vec::new();
         for (current, samples) in tests.iter() {
             let mut last_t = 0.0;
             for s in samples {

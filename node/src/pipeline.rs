@@ -5,7 +5,7 @@
 
 use estimation::health::{Check, HealthConfig, HealthMonitor, Level, Observation};
 use estimation::online::{
-    force_per_pa, EstimatorConfig, EstimatorSample, UpdateOutcome, YieldEstimate, YieldEstimator,
+    force_per_pa, EstimatorConfig, EstimatorSample, Tau0Estimate, UpdateOutcome, YieldEstimator,
 };
 use twin::models::{build, ModelKind, ModelParams, UnsupportedEffects};
 use twin::{DamperInput, DamperModel, DamperOutput, Effect, EffectSet};
@@ -57,7 +57,7 @@ pub struct TwinStep {
     /// measured − predicted \[N\].
     pub residual_n: f64,
     /// τ0 at the sample's current, if estimated yet.
-    pub estimate: Option<YieldEstimate>,
+    pub estimate: Option<Tau0Estimate>,
     /// What the estimator did with the sample.
     pub estimator: Option<UpdateOutcome>,
     /// Worst health level after the sample.
@@ -137,12 +137,12 @@ impl TwinPipeline {
     }
 
     /// The yield-stress estimate at `current_a`.
-    pub fn estimate_at(&self, current_a: f64) -> Option<YieldEstimate> {
+    pub fn estimate_at(&self, current_a: f64) -> Option<Tau0Estimate> {
         self.estimator.as_ref()?.at_current(current_a)
     }
 
     /// The fitted τ0(I) over the currents seen.
-    pub fn curve(&self) -> Vec<YieldEstimate> {
+    pub fn curve(&self) -> Vec<Tau0Estimate> {
         self.estimator.as_ref().map_or_else(Vec::new, |e| e.curve())
     }
 

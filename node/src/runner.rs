@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use bridge::transport::{Message, Topic, Transport, TransportError};
 use estimation::health::{Check, Level};
-use estimation::online::YieldEstimate;
+use estimation::online::Tau0Estimate;
 use msgs::shm::{ShmPrediction, ShmRequest};
 use msgs::{Float64, Header, TwinOutput};
 
@@ -54,7 +54,7 @@ pub struct LiveStats {
     /// Last current \[A\].
     pub current_a: f64,
     /// Yield estimate at the last current.
-    pub estimate: Option<YieldEstimate>,
+    pub estimate: Option<Tau0Estimate>,
     /// Worst health level.
     pub level: Level,
     /// The checks.
