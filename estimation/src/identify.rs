@@ -21,6 +21,9 @@
 //! the plastic window. The test must start from rest (τ ≈ 0 at x = x0) and be sampled finely
 //! enough to put at least three points on the elastic line.
 
+use numerics::least_squares::{levenberg_marquardt, normal_equations, sum_of_squares, LmOptions};
+use numerics::linalg::{self, LuDim};
+use numerics::nalgebra::{Const, DMatrix, DVector, Matrix2, SMatrix, SVector};
 use twin::fluid::BODNER_PARTOM_D0;
 
 /// One test: a loading from rest at one current (SI units).
@@ -282,45 +285,6 @@ pub fn yield_point(n: f64, r0_pa: f64, shear_rate: f64) -> f64 {
     .yield_point(shear_rate)
 }
 
-/// Solve the 2×2 or 3×3 symmetric system a x = b (Gauss with partial pivoting).
-fn solve<const N: usize>(mut a: [[f64; N]; N], mut b: [f64; N]) -> Option<[f64; N]> {
-    for c in 0..N {
-        let p = (c..N).max_by(|&x, &y| a[x][c].abs().total_cmp(&a[y][c].abs()))?;
-        if a[p][c].abs() < 1e-300 {
-            return None;
-        }
-        a.swap(c, p);
-        b.swap(c, p);
-        let pivot = a[c];
-        for r in c + 1..N {
-            let k = a[r][c] / pivot[c];
-            for (x, p) in a[r].iter_mut().zip(pivot).skip(c) {
-                *x -= k * p;
-            }
-            b[r] -= k * b[c];
-        }
-    }
-    let mut x = [0.0; N];
-    for c in (0..N).rev() {
-        let s: f64 = (c + 1..N).map(|j| a[c][j] * x[j]).sum();
-        x[c] = (b[c] - s) / a[c][c];
-    }
-    x.iter().all(|v| v.is_finite()).then_some(x)
-}
-
-fn inverse<const N: usize>(a: [[f64; N]; N]) -> Option<[[f64; N]; N]> {
-    let mut inv = [[0.0; N]; N];
-    for c in 0..N {
-        let mut e = [0.0; N];
-        e[c] = 1.0;
-        let col = solve(a, e)?;
-        for r in 0..N {
-            inv[r][c] = col[r];
-        }
-    }
-    Some(inv)
-}
-
 /// Step 2: n and R0 by Levenberg–Marquardt on (5.3) over (γ̇, τ0) points, D0 = 10⁶ 1/s.
 /// Parameters are (n, ln R0) inside; the residuals are in Pa.
 pub fn fit_law(points: &[(f64, f64)]) -> Option<(f64, f64, [[f64; 2]; 2], f64)> {
@@ -335,9 +299,8 @@ pub fn fit_law(points: &[(f64, f64)]) -> Option<(f64, f64, [[f64; 2]; 2], f64)> 
             .collect();
         r.iter().all(|v| v.is_finite()).then_some(r)
     };
-    let ssr = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>();
-    let jac = |p: [f64; 2]| -> Option<Vec<[f64; 2]>> {
-        let mut j = vec![[0.0; 2]; m];
+    let jac = |p: [f64; 2]| -> Option<DMatrix<f64>> {
+        let mut j = DMatrix::zeros(m, 2);
         for (k, h) in [(0usize, 1e-6), (1, 1e-7)] {
             let mut pp = p;
             let mut pm = p;
@@ -345,63 +308,46 @@ pub fn fit_law(points: &[(f64, f64)]) -> Option<(f64, f64, [[f64; 2]; 2], f64)> 
             pm[k] -= h;
             let (rp, rm) = (resid(pp)?, resid(pm)?);
             for i in 0..m {
-                j[i][k] = (rp[i] - rm[i]) / (2.0 * h);
+                j[(i, k)] = (rp[i] - rm[i]) / (2.0 * h);
             }
         }
         Some(j)
+    };
+    // Marquardt's damping of the diagonal as it is, λ ÷ 10 on success (not below 1e-12),
+    // × 10 on failure up to 30 times; converged at a relative SSR decrease of 1e-14 or a
+    // step below 1e-12 in both parameters. n must stay positive.
+    let opts = LmOptions {
+        max_iter: 200,
+        max_tries: 30,
+        lambda_init: 1e-3,
+        lambda_up: 10.0,
+        lambda_down: 0.1,
+        lambda_min: 1e-12,
+        diag_floor: 0.0,
+        rel_tol: 1e-14,
+        step_tol: 1e-12,
     };
     let mut best: Option<([f64; 2], f64)> = None;
     // Several starting values of n; ln R0 from the mean point for that n.
     for n0 in [0.1, 0.2, 0.3, 0.5, 0.8, 1.2] {
         let (g, t) = points[m / 2];
         let z = 2.0 * n0 / (n0 + 1.0) * (2.0 * BODNER_PARTOM_D0 / g).ln();
-        let mut p = [n0, (t * 3f64.sqrt() * z.powf(0.5 / n0)).ln()];
-        let Some(mut r) = resid(p) else { continue };
-        let mut s = ssr(&r);
-        let mut mu = 1e-3;
-        for _ in 0..200 {
-            let Some(j) = jac(p) else { break };
-            let mut a = [[0.0; 2]; 2];
-            let mut b = [0.0; 2];
-            for i in 0..m {
-                for u in 0..2 {
-                    b[u] -= j[i][u] * r[i];
-                    for v in 0..2 {
-                        a[u][v] += j[i][u] * j[i][v];
-                    }
-                }
-            }
-            let mut improved = false;
-            for _ in 0..30 {
-                let mut ad = a;
-                ad[0][0] *= 1.0 + mu;
-                ad[1][1] *= 1.0 + mu;
-                let Some(d) = solve(ad, b) else {
-                    mu *= 10.0;
-                    continue;
-                };
+        let p = [n0, (t * 3f64.sqrt() * z.powf(0.5 / n0)).ln()];
+        let Some(r) = resid(p) else { continue };
+        let s = sum_of_squares(&r);
+        let fit = levenberg_marquardt(
+            (p, r),
+            s,
+            &opts,
+            |(p, r): &([f64; 2], Vec<f64>)| Some(normal_equations(&jac(*p)?, r)),
+            |(p, _): &([f64; 2], Vec<f64>), d: &DVector<f64>| {
                 let q = [p[0] + d[0], p[1] + d[1]];
-                if q[0] > 0.0 {
-                    if let Some(rq) = resid(q) {
-                        let sq = ssr(&rq);
-                        if sq < s {
-                            let done =
-                                (s - sq) <= 1e-14 * s || (d[0].abs() < 1e-12 && d[1].abs() < 1e-12);
-                            p = q;
-                            r = rq;
-                            s = sq;
-                            mu = (mu / 10.0).max(1e-12);
-                            improved = !done;
-                            break;
-                        }
-                    }
-                }
-                mu *= 10.0;
-            }
-            if !improved {
-                break;
-            }
-        }
+                let rq = if q[0] > 0.0 { resid(q)? } else { return None };
+                let sq = sum_of_squares(&rq);
+                Some(((q, rq), sq))
+            },
+        );
+        let (p, s) = (fit.state.0, fit.cost);
         if best.is_none_or(|(_, bs)| s < bs) {
             best = Some((p, s));
         }
@@ -410,41 +356,44 @@ pub fn fit_law(points: &[(f64, f64)]) -> Option<(f64, f64, [[f64; 2]; 2], f64)> 
     // Covariance of (n, R0): s² (JᵀJ)⁻¹ with the Jacobian in (n, R0).
     let r0 = p[1].exp();
     let j = jac(p)?;
-    let mut a = [[0.0; 2]; 2];
-    for row in &j {
+    let mut a = Matrix2::zeros();
+    for row in j.row_iter() {
         let jr = [row[0], row[1] / r0];
         for u in 0..2 {
             for v in 0..2 {
-                a[u][v] += jr[u] * jr[v];
+                a[(u, v)] += jr[u] * jr[v];
             }
         }
     }
     let s2 = if m > 2 { s / (m - 2) as f64 } else { f64::NAN };
-    let inv = inverse(a)?;
+    let inv = linalg::inverse(&a)?;
     let cov = [
-        [s2 * inv[0][0], s2 * inv[0][1]],
-        [s2 * inv[1][0], s2 * inv[1][1]],
+        [s2 * inv[(0, 0)], s2 * inv[(0, 1)]],
+        [s2 * inv[(1, 0)], s2 * inv[(1, 1)]],
     ];
     Some((p[0], r0, cov, s))
 }
 
 /// Linear least squares with standard errors: y ≈ X β.
-fn linear_fit<const N: usize>(rows: &[[f64; N]], y: &[f64]) -> Option<Vec<Coefficient>> {
+fn linear_fit<const N: usize>(rows: &[[f64; N]], y: &[f64]) -> Option<Vec<Coefficient>>
+where
+    Const<N>: LuDim,
+{
     let m = rows.len();
     if m < N {
         return None;
     }
-    let mut a = [[0.0; N]; N];
-    let mut b = [0.0; N];
+    let mut a = SMatrix::<f64, N, N>::zeros();
+    let mut b = SVector::<f64, N>::zeros();
     for (x, &yy) in rows.iter().zip(y) {
         for u in 0..N {
             b[u] += x[u] * yy;
             for v in 0..N {
-                a[u][v] += x[u] * x[v];
+                a[(u, v)] += x[u] * x[v];
             }
         }
     }
-    let beta = solve(a, b)?;
+    let beta = linalg::solve(&a, &b)?;
     let ssr: f64 = rows
         .iter()
         .zip(y)
@@ -455,12 +404,12 @@ fn linear_fit<const N: usize>(rows: &[[f64; N]], y: &[f64]) -> Option<Vec<Coeffi
     } else {
         f64::NAN
     };
-    let inv = inverse(a)?;
+    let inv = linalg::inverse(&a)?;
     Some(
         (0..N)
             .map(|u| Coefficient {
                 value: beta[u],
-                se: (s2 * inv[u][u]).sqrt(),
+                se: (s2 * inv[(u, u)]).sqrt(),
             })
             .collect(),
     )

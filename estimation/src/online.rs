@@ -44,6 +44,7 @@
 //! * Bad samples (non-finite, time not increasing, a gap longer than `max_gap_s`, force at
 //!   or beyond the saturation limit) are rejected and counted; they touch no estimate.
 
+use numerics::linalg;
 use serde::{Deserialize, Serialize};
 use twin::models::{ModelKind, ModelParams};
 
@@ -227,11 +228,11 @@ fn regressor(cfg: &EstimatorConfig, v: f64, x: f64) -> [f64; P] {
     [v.signum(), sq, r, 1.0, x / cfg.displacement_scale_m]
 }
 
-/// (1 + ρ)/(1 − ρ) with ρ = lag1/lag0 clamped to \[0, 0.995\].
+/// The AR(1) variance inflation (1 + ρ)/(1 − ρ) with ρ = lag1/lag0 (0 when lag0 is not
+/// positive), ρ clamped as [`numerics::stats::ar1_rho`] does.
 fn ar1_inflation(lag1: f64, lag0: f64) -> f64 {
     let rho = if lag0 > 0.0 { lag1 / lag0 } else { 0.0 };
-    let rho = rho.clamp(0.0, 0.995);
-    (1.0 + rho) / (1.0 - rho)
+    numerics::stats::ar1_variance_inflation(rho)
 }
 
 /// RLS state of one current bin.
@@ -325,8 +326,9 @@ impl Bin {
     }
 
     /// Variance inflation (1 + ρ)/(1 − ρ) for serially correlated residuals, ρ the lag-1
-    /// autocorrelation of the normalised innovations clamped to \[0, 0.995\] (the AR(1)
-    /// effective-sample-size correction; ≈ 1 for white noise).
+    /// autocorrelation of the normalised innovations clamped to \[0,
+    /// [`numerics::stats::AR1_RHO_MAX`]\] (the AR(1) effective-sample-size correction; ≈ 1
+    /// for white noise).
     fn inflation(&self) -> f64 {
         ar1_inflation(self.sum_lag1, self.sum_e2)
     }
@@ -634,7 +636,7 @@ pub fn batch_fit(
         // That parameter is fixed at 0 (its regressor is 0): keep the system regular.
         a[1][1] = 1.0;
     }
-    let inv = invert5(a)?;
+    let inv = linalg::to_rows(&linalg::inverse(&linalg::from_rows(&a))?);
     let theta: Vec<f64> = (0..P)
         .map(|i| (0..P).map(|j| inv[i][j] * b[j]).sum())
         .collect();
@@ -653,37 +655,6 @@ pub fn batch_fit(
         tau0_pa: theta[0] / force_per_pa,
         tau0_std_pa: (s2 * inv[0][0]).sqrt() / force_per_pa,
     })
-}
-
-/// Inverse of a 5×5 matrix by Gauss–Jordan with partial pivoting.
-fn invert5(mut a: [[f64; P]; P]) -> Option<[[f64; P]; P]> {
-    let mut inv = [[0.0; P]; P];
-    for (i, row) in inv.iter_mut().enumerate() {
-        row[i] = 1.0;
-    }
-    for c in 0..P {
-        let p = (c..P).max_by(|&x, &y| a[x][c].abs().total_cmp(&a[y][c].abs()))?;
-        if a[p][c].abs() < 1e-300 {
-            return None;
-        }
-        a.swap(c, p);
-        inv.swap(c, p);
-        let d = a[c][c];
-        for j in 0..P {
-            a[c][j] /= d;
-            inv[c][j] /= d;
-        }
-        for r in 0..P {
-            if r != c {
-                let k = a[r][c];
-                for j in 0..P {
-                    a[r][j] -= k * a[c][j];
-                    inv[r][j] -= k * inv[c][j];
-                }
-            }
-        }
-    }
-    Some(inv)
 }
 
 #[cfg(test)]

@@ -8,9 +8,11 @@
 //! The Newton iteration starts from a linearly implicit (Rosenbrock–Euler) predictor and
 //! is damped by backtracking on the scaled residual, so the C¹ kink of a flow law at its
 //! yield pressure (flow blocking) is crossed without chattering. A stage that does not
-//! converge is reported, and the caller halves the step.
+//! converge is reported, and the caller halves the step. The linear systems are solved by
+//! [`numerics::linalg::solve`] (nalgebra's LU with partial pivoting).
 
-use nalgebra::{SMatrix, SVector};
+use nalgebra::{Const, SMatrix, SVector};
+use numerics::linalg::{solve, LuDim};
 
 /// A state vector of dimension N.
 pub type Vector<const N: usize> = SVector<f64, N>;
@@ -49,7 +51,10 @@ pub fn trbdf2_step<const N: usize, S: StiffSystem<N>>(
     theta1: f64,
     h: f64,
     tol: &Tolerance<N>,
-) -> Result<Vector<N>, NotConverged> {
+) -> Result<Vector<N>, NotConverged>
+where
+    Const<N>: LuDim,
+{
     let theta_g = theta0 + GAMMA * (theta1 - theta0);
     let (f0, j0) = sys.rhs(theta0, y0);
     // Stage 1 (trapezoid to t + γh): y_g − (y0 + γh/2 f0) − γh/2 f(y_g) = 0.
@@ -71,11 +76,14 @@ fn linearly_implicit_euler<const N: usize>(
     f: &Vector<N>,
     j: &Matrix<N>,
     h: f64,
-) -> Vector<N> {
+) -> Vector<N>
+where
+    Const<N>: LuDim,
+{
     let m = Matrix::<N>::identity() - j * h;
-    match solve(m, f * h) {
-        Some(dy) if dy.iter().all(|v| v.is_finite()) => y + dy,
-        _ => *y,
+    match solve(&m, &(f * h)) {
+        Some(dy) => y + dy,
+        None => *y,
     }
 }
 
@@ -89,7 +97,10 @@ fn newton<const N: usize, S: StiffSystem<N>>(
     ah: f64,
     mut z: Vector<N>,
     tol: &Tolerance<N>,
-) -> Result<(Vector<N>, Vector<N>, Matrix<N>), NotConverged> {
+) -> Result<(Vector<N>, Vector<N>, Matrix<N>), NotConverged>
+where
+    Const<N>: LuDim,
+{
     let weight = |v: &Vector<N>, at: &Vector<N>| -> f64 {
         let mut m: f64 = 0.0;
         for i in 0..N {
@@ -102,7 +113,7 @@ fn newton<const N: usize, S: StiffSystem<N>>(
     let mut gnorm = weight(&g, &z);
     for _ in 0..MAX_NEWTON {
         let m = Matrix::<N>::identity() - j * ah;
-        let Some(dz) = solve(m, g) else {
+        let Some(dz) = solve(&m, &g) else {
             return Err(NotConverged);
         };
         if weight(&dz, &z) < 1.0 {
@@ -133,38 +144,6 @@ fn newton<const N: usize, S: StiffSystem<N>>(
     Err(NotConverged)
 }
 
-/// Solve m x = b by Gaussian elimination with partial pivoting (N ≤ 3 here, where this
-/// is faster than a general LU); `None` if m is singular.
-fn solve<const N: usize>(mut m: Matrix<N>, mut b: Vector<N>) -> Option<Vector<N>> {
-    for col in 0..N {
-        let piv = (col..N).max_by(|&a, &c| m[(a, col)].abs().total_cmp(&m[(c, col)].abs()))?;
-        if m[(piv, col)] == 0.0 || !m[(piv, col)].is_finite() {
-            return None;
-        }
-        if piv != col {
-            m.swap_rows(piv, col);
-            b.swap_rows(piv, col);
-        }
-        for r in col + 1..N {
-            let factor = m[(r, col)] / m[(col, col)];
-            if factor != 0.0 {
-                for c in col..N {
-                    m[(r, c)] -= factor * m[(col, c)];
-                }
-                b[r] -= factor * b[col];
-            }
-        }
-    }
-    for col in (0..N).rev() {
-        let mut acc = b[col];
-        for c in col + 1..N {
-            acc -= m[(col, c)] * b[c];
-        }
-        b[col] = acc / m[(col, col)];
-    }
-    Some(b)
-}
-
 /// Integrate over \[θ0, θ1\] (length `h` seconds), halving the step where Newton fails,
 /// down to 2⁻¹⁰ of the original. Returns the last iterate if even that fails.
 pub fn trbdf2_adaptive<const N: usize, S: StiffSystem<N>>(
@@ -174,7 +153,10 @@ pub fn trbdf2_adaptive<const N: usize, S: StiffSystem<N>>(
     theta1: f64,
     h: f64,
     tol: &Tolerance<N>,
-) -> Vector<N> {
+) -> Vector<N>
+where
+    Const<N>: LuDim,
+{
     fn go<const N: usize, S: StiffSystem<N>>(
         sys: &S,
         y0: &Vector<N>,
@@ -183,7 +165,10 @@ pub fn trbdf2_adaptive<const N: usize, S: StiffSystem<N>>(
         h: f64,
         tol: &Tolerance<N>,
         depth: u32,
-    ) -> Result<Vector<N>, NotConverged> {
+    ) -> Result<Vector<N>, NotConverged>
+    where
+        Const<N>: LuDim,
+    {
         match trbdf2_step(sys, y0, t0, t1, h, tol) {
             Ok(y) => Ok(y),
             Err(e) if depth >= 10 => Err(e),

@@ -1,0 +1,15 @@
+//! # numerics — one path for each kind of numerics in mrtwin
+//!
+//! Pure computation, no I/O, one dependency (nalgebra, re-exported as [`nalgebra`]).
+//!
+//! * [`linalg`]: the small dense solves and inverses, through nalgebra's LU and Cholesky
+//!   decompositions.
+//! * [`least_squares`]: the Levenberg–Marquardt loop shared by every nonlinear fit.
+//! * [`stats`]: quantiles and the median, the lag-1 autocorrelation and the AR(1)
+//!   effective sample size, normal and χ² quantiles, the Wilson interval.
+
+pub mod least_squares;
+pub mod linalg;
+pub mod stats;
+
+pub use nalgebra;
