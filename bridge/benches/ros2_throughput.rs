@@ -171,11 +171,9 @@ fn run<R: Receiver + 'static>(
     )
 }
 
+/// Nearest-rank quantile of sorted values ([`numerics::stats::quantile`]); NaN when empty.
 fn quantile(sorted: &[f64], q: f64) -> f64 {
-    if sorted.is_empty() {
-        return f64::NAN;
-    }
-    sorted[((sorted.len() - 1) as f64 * q).round() as usize]
+    numerics::stats::quantile(sorted, q).unwrap_or(f64::NAN)
 }
 
 fn row(case: &str, load: &str, r: &mut Run) {

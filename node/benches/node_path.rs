@@ -31,11 +31,9 @@ struct Row {
     p99_us: f64,
 }
 
+/// Nearest-rank quantile ([`numerics::stats::quantile_unsorted`]); NaN when empty.
 fn quantile(v: &mut [f64], q: f64) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v.get(((q * v.len() as f64) as usize).min(v.len().saturating_sub(1)))
-        .copied()
-        .unwrap_or(f64::NAN)
+    numerics::stats::quantile_unsorted(v, q).unwrap_or(f64::NAN)
 }
 
 fn run(kind: TransportKind, with_twin: bool, rate: f64, seconds: f64, case: u16) -> Row {

@@ -89,13 +89,10 @@ pub struct ControllerSummary {
     pub elapsed_s: f64,
 }
 
-/// The `q`-quantile (0 ≤ q ≤ 1) of sorted values, nearest rank; NaN when empty.
+/// The `q`-quantile (0 ≤ q ≤ 1) of sorted values by nearest rank
+/// ([`numerics::stats::quantile`]); NaN when empty.
 pub fn quantile(sorted: &[f64], q: f64) -> f64 {
-    if sorted.is_empty() {
-        return f64::NAN;
-    }
-    let rank = (q * sorted.len() as f64).ceil() as usize;
-    sorted[rank.clamp(1, sorted.len()) - 1]
+    numerics::stats::quantile(sorted, q).unwrap_or(f64::NAN)
 }
 
 /// Sleep until `target`, then spin the last stretch (the OS sleep overshoots by
