@@ -190,9 +190,7 @@ fn validate(s: &Signals) -> Result<(), DataError> {
 
 /// Step to the previous sample (0 at the start and after a gap of more than 5 median steps).
 fn steps(t: &[f64]) -> Vec<f64> {
-    let mut dts: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-    dts.sort_by(f64::total_cmp);
-    let dt = dts[dts.len() / 2];
+    let dt = crate::stats::median(t.windows(2).map(|w| w[1] - w[0]).collect());
     let mut h = vec![0.0; t.len()];
     for k in 1..t.len() {
         let d = t[k] - t[k - 1];

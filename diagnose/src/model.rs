@@ -22,6 +22,7 @@
 //!   `C dF/dt = v − w(F)`, w the gap flow velocity that force F drives (inverse of the
 //!   baseline law), integrated implicitly (backward Euler)  \[C = 0\]
 
+use numerics::least_squares::{levenberg_marquardt, LmOptions};
 use twin::Effect;
 
 use crate::bingham;
@@ -581,41 +582,37 @@ pub fn fit_limited(d: &Prepared, lay: &Layout, theta0: &[f64], max_iter: usize) 
     let n = d.len();
     let mut theta = theta0.to_vec();
     clamp_bounds(d, lay, &mut theta);
-    let mut ev = evaluate(d, lay, &theta, true);
-    let mut sse = sse_train(d, &ev.force);
-    let mut lambda = 1e-3;
-    for _ in 0..max_iter {
-        let (jtj, jtr) = normal_equations(d, &ev, p);
-        let mut improved = false;
-        for _ in 0..12 {
-            let mut a = jtj.clone();
-            for q in 0..p {
-                a[(q, q)] += lambda * jtj[(q, q)].max(1e-12);
-            }
-            let Some(ch) = a.cholesky() else {
-                lambda *= 10.0;
-                continue;
-            };
-            let step = ch.solve(&jtr);
+    let ev = evaluate(d, lay, &theta, true);
+    let sse = sse_train(d, &ev.force);
+    // λ from 1e-3, × 0.3 on success (not below 1e-9), × 10 on failure up to 12 times; the
+    // damping floor keeps a parameter the data do not move solvable; converged when an
+    // accepted step lowers the weighted SSE by 1e-7 or less. Trial points are projected
+    // onto the bounds.
+    let opts = LmOptions {
+        max_iter,
+        max_tries: 12,
+        lambda_init: 1e-3,
+        lambda_up: 10.0,
+        lambda_down: 0.3,
+        lambda_min: 1e-9,
+        diag_floor: 1e-12,
+        rel_tol: 1e-7,
+        step_tol: 0.0,
+    };
+    let fit = levenberg_marquardt(
+        (theta, ev),
+        sse,
+        &opts,
+        |(_, ev): &(Vec<f64>, Evaluation)| Some(normal_equations(d, ev, p)),
+        |(theta, _): &(Vec<f64>, Evaluation), step: &nalgebra::DVector<f64>| {
             let mut trial: Vec<f64> = theta.iter().zip(step.iter()).map(|(t, s)| t + s).collect();
             clamp_bounds(d, lay, &mut trial);
-            let ev2 = evaluate(d, lay, &trial, true);
-            let sse2 = sse_train(d, &ev2.force);
-            if sse2.is_finite() && sse2 < sse {
-                let rel = (sse - sse2) / sse.max(1e-300);
-                theta = trial;
-                ev = ev2;
-                sse = sse2;
-                lambda = (lambda * 0.3).max(1e-9);
-                improved = rel > 1e-7;
-                break;
-            }
-            lambda *= 10.0;
-        }
-        if !improved {
-            break;
-        }
-    }
+            let ev = evaluate(d, lay, &trial, true);
+            let sse = sse_train(d, &ev.force);
+            Some(((trial, ev), sse))
+        },
+    );
+    let ((theta, ev), sse) = (fit.state, fit.cost);
     // Residual autocorrelation and parameter standard errors.
     let r: Vec<f64> = (0..n)
         .filter(|&j| d.train[j])

@@ -1,26 +1,17 @@
 //! Residual statistics: autocorrelation, effective sample size, cross-correlation with
 //! confidence bands, and the paired held-out test over strokes.
+//!
+//! The general ones (autocorrelation, AR(1) effective sample size, median, normal and χ²
+//! quantiles, Wilson interval) are those of [`numerics::stats`], re-exported or wrapped
+//! here with diagnose's conventions; the tests below keep checking them through diagnose.
 
-/// Autocorrelation of `r` at `lag` (biased estimator, mean removed).
-pub fn autocorr(r: &[f64], lag: usize) -> f64 {
-    let n = r.len();
-    if n <= lag + 1 {
-        return 0.0;
-    }
-    let m = r.iter().sum::<f64>() / n as f64;
-    let var: f64 = r.iter().map(|x| (x - m).powi(2)).sum();
-    if var <= 0.0 {
-        return 0.0;
-    }
-    let cov: f64 = (lag..n).map(|k| (r[k] - m) * (r[k - lag] - m)).sum();
-    cov / var
-}
+pub use numerics::stats::{autocorr, chi2_quantile, normal_quantile, wilson95};
 
 /// Effective sample size of `n` AR(1)-correlated residuals with lag-1 autocorrelation
-/// `rho1`: n (1 − ρ)/(1 + ρ), ρ clamped to \[0, 0.999\], at least 10.
+/// `rho1`: n (1 − ρ)/(1 + ρ) ([`numerics::stats::effective_sample_size`], ρ clamped to
+/// \[0, [`numerics::stats::AR1_RHO_MAX`]\]), at least 10.
 pub fn effective_n(n: usize, rho1: f64) -> f64 {
-    let r = rho1.clamp(0.0, 0.999);
-    (n as f64 * (1.0 - r) / (1.0 + r)).max(10.0)
+    numerics::stats::effective_sample_size(n, rho1).max(10.0)
 }
 
 /// Normalised cross-correlation ρ(k) = corr(r\[j\], s\[j − k\]) for k in `lags`;
@@ -67,88 +58,9 @@ pub fn ljung_box(r: &[f64], m: usize) -> (f64, f64) {
 }
 
 /// The median of `v` (the upper one of an even count; 0 for an empty vector), by selection
-/// in place (no full sort).
+/// in place (no full sort): [`numerics::stats::median`].
 pub fn median(mut v: Vec<f64>) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    let m = v.len() / 2;
-    *v.select_nth_unstable_by(m, f64::total_cmp).1
-}
-
-/// Quantile of the standard normal distribution (Acklam's rational approximation,
-/// relative error below 1.2e-9).
-pub fn normal_quantile(p: f64) -> f64 {
-    const A: [f64; 6] = [
-        -3.969_683_028_665_376e1,
-        2.209_460_984_245_205e2,
-        -2.759_285_104_469_687e2,
-        1.383_577_518_672_69e2,
-        -3.066_479_806_614_716e1,
-        2.506_628_277_459_239,
-    ];
-    const B: [f64; 5] = [
-        -5.447_609_879_822_406e1,
-        1.615_858_368_580_409e2,
-        -1.556_989_798_598_866e2,
-        6.680_131_188_771_972e1,
-        -1.328_068_155_288_572e1,
-    ];
-    const C: [f64; 6] = [
-        -7.784_894_002_430_293e-3,
-        -3.223_964_580_411_365e-1,
-        -2.400_758_277_161_838,
-        -2.549_732_539_343_734,
-        4.374_664_141_464_968,
-        2.938_163_982_698_783,
-    ];
-    const D: [f64; 4] = [
-        7.784_695_709_041_462e-3,
-        3.224_671_290_700_398e-1,
-        2.445_134_137_142_996,
-        3.754_408_661_907_416,
-    ];
-    let p = p.clamp(1e-300, 1.0 - 1e-16);
-    let tail = |q: f64| {
-        (((((C[0] * q + C[1]) * q + C[2]) * q + C[3]) * q + C[4]) * q + C[5])
-            / ((((D[0] * q + D[1]) * q + D[2]) * q + D[3]) * q + 1.0)
-    };
-    if p < 0.02425 {
-        tail((-2.0 * p.ln()).sqrt())
-    } else if p > 1.0 - 0.02425 {
-        -tail((-2.0 * (1.0 - p).ln()).sqrt())
-    } else {
-        let q = p - 0.5;
-        let r = q * q;
-        (((((A[0] * r + A[1]) * r + A[2]) * r + A[3]) * r + A[4]) * r + A[5]) * q
-            / (((((B[0] * r + B[1]) * r + B[2]) * r + B[3]) * r + B[4]) * r + 1.0)
-    }
-}
-
-/// Quantile of χ²(ν) for any ν > 0: exact for ν = 1 and 2, Wilson–Hilferty otherwise.
-pub fn chi2_quantile(p: f64, nu: f64) -> f64 {
-    if (nu - 1.0).abs() < 1e-12 {
-        return normal_quantile(0.5 + 0.5 * p).powi(2);
-    }
-    if (nu - 2.0).abs() < 1e-12 {
-        return -2.0 * (1.0 - p).ln();
-    }
-    let z = normal_quantile(p);
-    let k = 2.0 / (9.0 * nu);
-    (nu * (1.0 - k + z * k.sqrt()).powi(3)).max(0.0)
-}
-
-/// Wilson score interval (95 %) of a proportion `k` of `n`.
-pub fn wilson95(k: usize, n: usize) -> (f64, f64) {
-    if n == 0 {
-        return (0.0, 1.0);
-    }
-    let z = 1.959_963_984_540_054;
-    let (nf, p) = (n as f64, k as f64 / n as f64);
-    let den = 1.0 + z * z / nf;
-    let mid = (p + z * z / (2.0 * nf)) / den;
-    let half = z * (p * (1.0 - p) / nf + z * z / (4.0 * nf * nf)).sqrt() / den;
-    ((mid - half).max(0.0), (mid + half).min(1.0))
+    numerics::stats::median(&mut v).unwrap_or(0.0)
 }
 
 /// Paired test over blocks (strokes): mean and standard error of the per-block

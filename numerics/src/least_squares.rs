@@ -132,7 +132,9 @@ where
                     state = next;
                     cost = c;
                     lambda = (lambda * opts.lambda_down).max(opts.lambda_min);
-                    accepted = Some(rel <= opts.rel_tol || small);
+                    // Not "rel <= rel_tol": a NaN (from an infinite start cost) stops too.
+                    let progressing = rel > opts.rel_tol;
+                    accepted = Some(!progressing || small);
                     break;
                 }
             }
