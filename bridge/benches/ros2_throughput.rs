@@ -206,11 +206,11 @@ fn main() {
 
     let mut cfg = Ros2Config {
         domain_id: DOMAIN,
-        namespace: "/bench".into(),
+        namespace: "/bench".parse().expect("namespace"),
         ..Default::default()
     };
     cfg.qos.insert(
-        "sensor/sample".into(),
+        Topic::Sample,
         QosOverride {
             reliability: Some(Reliability::Reliable),
             depth: Some(1000),

@@ -30,7 +30,9 @@ fn main() {
     while i < args.len() {
         let value = args.get(i + 1).cloned();
         match (args[i].as_str(), value) {
-            ("--ns", Some(v)) => cfg.namespace = v,
+            ("--ns", Some(v)) => {
+                cfg.namespace = v.parse().unwrap_or_else(|e| exit(&format!("--ns {v}: {e}")))
+            }
             ("--node", Some(v)) => cfg.node_name = v,
             ("--seconds", Some(v)) => {
                 seconds = v.parse().unwrap_or_else(|_| exit(&format!("--seconds {v}: not a number")))

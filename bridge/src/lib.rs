@@ -8,18 +8,16 @@
 //! - [`qos`]: the QoS reliability shared by the ROS 2 adapter and the bags.
 //! - [`transport`]: the adapter interface of the middleware; the adapters are behind
 //!   features: [`ros2`] (DDS via ros2-client), [`zenoh`], [`iceoryx2`] (shared memory).
+//!   Their settings (`Ros2Config`, `ZenohConfig`, `Iceoryx2Config`) are compiled in every
+//!   build, so one parameter file reads the same whatever the build holds.
 
 pub mod bag;
 pub mod csv;
+pub mod iceoryx2;
 pub mod qos;
+pub mod ros2;
 pub mod transport;
 pub mod utfsm;
-
-#[cfg(feature = "iceoryx2")]
-pub mod iceoryx2;
-#[cfg(feature = "ros2")]
-pub mod ros2;
-#[cfg(feature = "zenoh")]
 pub mod zenoh;
 
 pub use csv::{

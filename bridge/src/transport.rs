@@ -7,9 +7,13 @@
 //! service names `mrtwin/<damper>/<topic>`.
 
 use msgs::{Clock, DamperSample, DiagnosticArray, Float64, TwinOutput, YieldEstimate};
+use serde::{Deserialize, Serialize};
 
-/// The topics of an mrtwin system.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+/// The topics of an mrtwin system. In parameter files by [`Topic::key`] or
+/// [`Topic::ros_name`] (`sensor/sample`, `/diagnostics`); an unknown name is an error
+/// listing the known ones.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(try_from = "String", into = "String")]
 pub enum Topic {
     /// Sensor samples in (`sensor/sample`, `mrtwin_msgs/msg/DamperSample`, best effort).
     Sample,
@@ -76,6 +80,31 @@ impl Topic {
         Topic::ALL
             .into_iter()
             .find(|t| t.ros_name() == name || t.key() == name)
+    }
+}
+
+/// A name that is not one of the [`Topic`]s.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown topic '{0}'; known: {known}", known = Topic::ALL.map(Topic::key).join(", "))]
+pub struct UnknownTopic(pub String);
+
+impl std::str::FromStr for Topic {
+    type Err = UnknownTopic;
+    fn from_str(name: &str) -> Result<Self, UnknownTopic> {
+        Topic::parse(name.trim()).ok_or_else(|| UnknownTopic(name.trim().to_string()))
+    }
+}
+
+impl TryFrom<String> for Topic {
+    type Error = UnknownTopic;
+    fn try_from(name: String) -> Result<Self, UnknownTopic> {
+        name.parse()
+    }
+}
+
+impl From<Topic> for String {
+    fn from(t: Topic) -> Self {
+        t.key().to_string()
     }
 }
 
@@ -180,6 +209,11 @@ mod tests {
             assert_eq!(Topic::parse(t.ros_name()), Some(t));
             assert_eq!(Topic::parse(t.key()), Some(t));
         }
+        let e = "twin/nothing".parse::<Topic>().unwrap_err().to_string();
+        assert!(
+            e.contains("'twin/nothing'") && e.contains("sensor/sample"),
+            "{e}"
+        );
         let m = Message::PredictedForce(Float64 { data: 3.0 });
         assert_eq!(Message::from_cdr(m.topic(), &m.to_cdr()).unwrap(), m);
     }

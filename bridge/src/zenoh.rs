@@ -8,25 +8,56 @@
 //!
 //! Peer mode by default: no router is needed; peers find each other by multicast
 //! scouting, or by the `connect`/`listen` endpoints given in the configuration.
+//! zenoh is built with its TCP link only: endpoints are `tcp/<host>:<port>` (multicast
+//! scouting is part of zenoh's core and needs no link).
+//!
+//! The settings ([`ZenohConfig`]) are compiled in every build, so one parameter file
+//! reads everywhere; the adapter ([`ZenohTransport`]) only with the `zenoh` feature.
 
-use std::collections::HashMap;
+use std::fmt;
 
 use serde::{Deserialize, Serialize};
-use zenoh::handlers::FifoChannelHandler;
-use zenoh::pubsub::{Publisher, Subscriber};
-use zenoh::sample::Sample;
-use zenoh::{Session, Wait};
 
-use crate::transport::{Message, Topic, Transport, TransportError};
+use crate::transport::Topic;
 
-const NAME: &str = "zenoh";
+#[cfg(feature = "zenoh")]
+mod adapter;
+#[cfg(feature = "zenoh")]
+pub use adapter::ZenohTransport;
+
+/// How a zenoh session joins the network.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ZenohMode {
+    /// `peer`: talks to other peers directly, no router needed.
+    #[default]
+    Peer,
+    /// `client`: talks through the router(s) in `connect`.
+    Client,
+}
+
+impl ZenohMode {
+    /// The name in parameter files and in zenoh's own configuration.
+    pub fn name(self) -> &'static str {
+        match self {
+            ZenohMode::Peer => "peer",
+            ZenohMode::Client => "client",
+        }
+    }
+}
+
+impl fmt::Display for ZenohMode {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
 
 /// zenoh settings (parameter-file section `zenoh`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ZenohConfig {
     /// `peer` (default, no router needed) or `client` (through a router in `connect`).
-    pub mode: String,
+    pub mode: ZenohMode,
     /// Endpoints to connect to, e.g. `tcp/127.0.0.1:7447`.
     pub connect: Vec<String>,
     /// Endpoints to listen on, e.g. `tcp/127.0.0.1:0`.
@@ -40,7 +71,7 @@ pub struct ZenohConfig {
 impl Default for ZenohConfig {
     fn default() -> Self {
         Self {
-            mode: "peer".into(),
+            mode: ZenohMode::Peer,
             connect: Vec::new(),
             listen: Vec::new(),
             multicast_scouting: true,
@@ -54,130 +85,27 @@ impl ZenohConfig {
     pub fn key(&self, damper: &str, topic: Topic) -> String {
         format!("{}/{}/{}", self.key_prefix, damper, topic.key())
     }
-
-    fn to_zenoh(&self) -> Result<zenoh::Config, TransportError> {
-        let err = |what: &str, e: Box<dyn std::error::Error + Send + Sync>| {
-            TransportError::new(NAME, format!("configuration: {what}"), e)
-        };
-        if self.mode != "peer" && self.mode != "client" {
-            return Err(TransportError::new(
-                NAME,
-                "configuration: mode",
-                format!("'{}' is not peer or client", self.mode),
-            ));
-        }
-        let mut c = zenoh::Config::default();
-        c.insert_json5("mode", &format!("\"{}\"", self.mode))
-            .map_err(|e| err("mode", e))?;
-        let list = |v: &[String]| serde_json_list(v);
-        c.insert_json5("connect/endpoints", &list(&self.connect))
-            .map_err(|e| err("connect", e))?;
-        if !self.listen.is_empty() {
-            c.insert_json5("listen/endpoints", &list(&self.listen))
-                .map_err(|e| err("listen", e))?;
-        }
-        c.insert_json5(
-            "scouting/multicast/enabled",
-            if self.multicast_scouting {
-                "true"
-            } else {
-                "false"
-            },
-        )
-        .map_err(|e| err("multicast_scouting", e))?;
-        Ok(c)
-    }
 }
 
-fn serde_json_list(v: &[String]) -> String {
-    let items: Vec<String> = v
-        .iter()
-        .map(|s| format!("\"{}\"", s.replace('\\', "\\\\").replace('"', "\\\"")))
-        .collect();
-    format!("[{}]", items.join(","))
-}
+#[cfg(test)]
+mod tests {
+    use super::*;
 
-/// The zenoh adapter.
-pub struct ZenohTransport {
-    session: Session,
-    publishers: HashMap<Topic, Publisher<'static>>,
-    subscribers: Vec<(Topic, Subscriber<FifoChannelHandler<Sample>>)>,
-    /// Messages that arrived but did not decode (counted, not fatal).
-    pub undecodable: u64,
-}
-
-impl ZenohTransport {
-    /// Open a session and declare the publishers and subscribers of `damper`.
-    pub fn new(
-        cfg: &ZenohConfig,
-        damper: &str,
-        publish: &[Topic],
-        subscribe: &[Topic],
-    ) -> Result<Self, TransportError> {
-        let session = zenoh::open(cfg.to_zenoh()?)
-            .wait()
-            .map_err(|e| TransportError::new(NAME, "open session", e))?;
-        let mut publishers = HashMap::new();
-        for &t in publish {
-            let key = cfg.key(damper, t);
-            let congestion = zenoh::qos::CongestionControl::Block;
-            let p = session
-                .declare_publisher(key.clone())
-                .encoding(zenoh::bytes::Encoding::APPLICATION_CDR)
-                .congestion_control(congestion)
-                .wait()
-                .map_err(|e| TransportError::new(NAME, format!("declare publisher {key}"), e))?;
-            publishers.insert(t, p);
-        }
-        let mut subscribers = Vec::new();
-        for &t in subscribe {
-            let key = cfg.key(damper, t);
-            let s = session
-                .declare_subscriber(key.clone())
-                .with(zenoh::handlers::FifoChannel::new(65_536))
-                .wait()
-                .map_err(|e| TransportError::new(NAME, format!("declare subscriber {key}"), e))?;
-            subscribers.push((t, s));
-        }
-        Ok(Self {
-            session,
-            publishers,
-            subscribers,
-            undecodable: 0,
-        })
-    }
-
-    /// Close the session (also done on drop).
-    pub fn close(self) {
-        let _ = self.session.close().wait();
-    }
-}
-
-impl Transport for ZenohTransport {
-    fn name(&self) -> &'static str {
-        NAME
-    }
-
-    fn publish(&mut self, msg: &Message) -> Result<(), TransportError> {
-        let topic = msg.topic();
-        let Some(p) = self.publishers.get(&topic) else {
-            return Ok(());
-        };
-        p.put(msg.to_cdr())
-            .wait()
-            .map_err(|e| TransportError::new(NAME, format!("publish on {}", topic.key()), e))
-    }
-
-    fn poll(&mut self, out: &mut Vec<Message>) -> Result<(), TransportError> {
-        for (topic, sub) in &self.subscribers {
-            while let Ok(Some(sample)) = sub.try_recv() {
-                let bytes = sample.payload().to_bytes();
-                match Message::from_cdr(*topic, &bytes) {
-                    Ok(m) => out.push(m),
-                    Err(_) => self.undecodable += 1,
-                }
-            }
-        }
-        Ok(())
+    #[test]
+    fn mode_parses_by_name_and_unknown_modes_are_listed() {
+        let c: ZenohConfig = serde_json::from_str(r#"{"mode": "client"}"#).unwrap();
+        assert_eq!(c.mode, ZenohMode::Client);
+        assert_eq!(c.mode.to_string(), "client");
+        let e = serde_json::from_str::<ZenohConfig>(r#"{"mode": "router"}"#)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("router") && e.contains("peer") && e.contains("client"),
+            "{e}"
+        );
+        assert_eq!(
+            ZenohConfig::default().key("d1", Topic::Diagnostics),
+            "mrtwin/d1/diagnostics"
+        );
     }
 }

@@ -229,7 +229,7 @@ fn rclpy_receives_outputs_sees_the_graph_and_sees_us_leave() {
     let name = "twin_under_test";
     let cfg = Ros2Config {
         domain_id: DOMAIN_RCLPY_LISTENS,
-        namespace: ns.into(),
+        namespace: ns.parse().unwrap(),
         node_name: name.into(),
         ..Default::default()
     };
@@ -396,7 +396,7 @@ fn adapter_consumes_what_rclpy_publishes() {
     let ns = "/ros2_it_talk";
     let cfg = Ros2Config {
         domain_id: DOMAIN_RCLPY_TALKS,
-        namespace: ns.into(),
+        namespace: ns.parse().unwrap(),
         node_name: "twin_listener".into(),
         ..Default::default()
     };
@@ -619,14 +619,14 @@ fn cdr_bytes_match_rclpy_serialization() {
 fn mrtwin_types_between_two_adapters() {
     let base = Ros2Config {
         domain_id: DOMAIN_TWO_ADAPTERS,
-        namespace: "/ros2_it_pair".into(),
+        namespace: "/ros2_it_pair".parse().unwrap(),
         ..Default::default()
     };
     let mut stand_cfg = base.clone();
     stand_cfg.node_name = "stand".into();
     // Reliable samples for this test, so that it cannot lose one by chance.
     stand_cfg.qos.insert(
-        "sensor/sample".into(),
+        Topic::Sample,
         bridge::ros2::QosOverride {
             reliability: Some(Reliability::Reliable),
             depth: None,

@@ -11,14 +11,13 @@ use std::sync::Arc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::{bail, Context, Result};
-use bridge::iceoryx2::ControlClient;
 use bridge::transport::{Message, Topic};
 use clap::Args;
 use msgs::shm::{ShmRequest, ShmSample};
 use node::config::TwinNodeParams;
 use node::runner::{LiveStats, StopWhen, TwinNode};
 use node::stand::{StandNode, StandParams};
-use node::transports::{open, TransportKind, TransportSettings};
+use node::transports::{open, ControlClient, TransportKind, TransportSettings};
 
 /// Arguments of `mrtwin demo`.
 #[derive(Debug, Args)]
@@ -62,21 +61,12 @@ fn free_port() -> Result<u16> {
         .port())
 }
 
-/// `mrtwin demo`.
-pub fn run(args: &DemoArgs) -> Result<()> {
-    if !(args.duration.is_finite() && args.duration > 0.0 && args.duration <= 86_400.0) {
-        bail!("--duration must be in (0, 86400] s, got {}", args.duration);
-    }
-    if !(args.rate.is_finite() && args.rate > 0.0 && args.rate <= 20_000.0) {
-        bail!("--rate must be in (0, 20000] Hz, got {}", args.rate);
-    }
-    let stop = crate::nodes::stop_flag()?;
-    let port = free_port()?;
-    let damper = format!("demo{}", std::process::id());
+/// The demo's twin and stand: the twin listens on a loopback port, the stand and the
+/// monitor connect to it (no multicast needed).
+fn configure(args: &DemoArgs, damper: &str, port: u16) -> (TwinNodeParams, StandParams) {
     let all = TransportKind::ALL.to_vec();
-    // The twin listens on a loopback port; the others connect to it (no multicast needed).
     let mut twin = TwinNodeParams {
-        damper: damper.clone(),
+        damper: damper.to_string(),
         transports: all.clone(),
         input: args.input,
         ..Default::default()
@@ -85,8 +75,8 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     twin.zenoh.listen = vec![format!("tcp/127.0.0.1:{port}")];
     twin.ros2.domain_id = args.domain_id;
     let mut stand = StandParams {
-        damper: damper.clone(),
-        transports: all.clone(),
+        damper: damper.to_string(),
+        transports: all,
         rate_hz: args.rate,
         // One stroke frequency, three currents of 3 s each: the default 10 s shows the
         // estimate at every current.
@@ -99,7 +89,93 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     stand.zenoh.connect = vec![format!("tcp/127.0.0.1:{port}")];
     stand.ros2.domain_id = args.domain_id;
     stand.ros2.node_name = "mrtwin_stand".into();
+    (twin, stand)
+}
 
+/// Twin outputs received per transport (in [`TransportKind::ALL`] order).
+type Counts = Arc<[AtomicU64; 3]>;
+
+/// A monitor thread that counts the twin's outputs on every transport until `done`.
+fn spawn_monitor(
+    settings: &TransportSettings,
+    counts: Counts,
+    done: Arc<AtomicBool>,
+) -> Result<std::thread::JoinHandle<()>> {
+    let mut monitors = Vec::new();
+    for (i, &k) in TransportKind::ALL.iter().enumerate() {
+        monitors.push((
+            i,
+            open(k, settings, &[], &[Topic::Output])
+                .with_context(|| format!("open the {k} monitor"))?,
+        ));
+    }
+    Ok(std::thread::spawn(move || {
+        let mut inbox = Vec::new();
+        while !done.load(Ordering::Relaxed) {
+            for (i, t) in &mut monitors {
+                inbox.clear();
+                let _ = t.poll(&mut inbox);
+                let n = inbox
+                    .iter()
+                    .filter(|m| matches!(m, Message::Output(_)))
+                    .count();
+                counts[*i].fetch_add(n as u64, Ordering::Relaxed);
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }))
+}
+
+/// What-if answers: `[answered, rejected]`.
+type WhatIf = Arc<[AtomicU64; 2]>;
+
+/// A local controller asking "what force with 2 A now?" at 100 Hz over iceoryx2.
+fn spawn_controller(
+    cfg: bridge::iceoryx2::Iceoryx2Config,
+    whatif: WhatIf,
+    done: Arc<AtomicBool>,
+) -> std::thread::JoinHandle<Result<()>> {
+    std::thread::spawn(move || -> Result<()> {
+        let mut client = ControlClient::new(&cfg)?;
+        client.wait_for_server(Duration::from_secs(5))?;
+        let mut seq = 0;
+        while !done.load(Ordering::Relaxed) {
+            seq += 1;
+            let now = SystemTime::now()
+                .duration_since(UNIX_EPOCH)
+                .map_or(0, |d| d.as_nanos() as i64);
+            let req = ShmRequest {
+                kind: ShmRequest::PLANNED_CURRENT,
+                reserved: 0,
+                sample: ShmSample {
+                    seq,
+                    time_ns: now,
+                    current_a: 2.0,
+                    temperature_c: f64::NAN,
+                    ..Default::default()
+                },
+            };
+            if let Ok(r) = client.request(&req, Duration::from_millis(100)) {
+                whatif[usize::from(r.rejected != 0)].fetch_add(1, Ordering::Relaxed);
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        Ok(())
+    })
+}
+
+/// `mrtwin demo`.
+pub fn run(args: &DemoArgs) -> Result<()> {
+    if !(args.duration.is_finite() && args.duration > 0.0 && args.duration <= 86_400.0) {
+        bail!("--duration must be in (0, 86400] s, got {}", args.duration);
+    }
+    if !(args.rate.is_finite() && args.rate > 0.0 && args.rate <= 20_000.0) {
+        bail!("--rate must be in (0, 20000] Hz, got {}", args.rate);
+    }
+    let stop = crate::stop::stop_flag()?;
+    let port = free_port()?;
+    let damper = format!("demo{}", std::process::id());
+    let (twin, stand) = configure(args, &damper, port);
     println!(
         "mrtwin demo: stand ({} Hz, {} model, currents {:?} A, frequencies {:?} Hz) → twin ({} in; ROS 2 domain {}, zenoh tcp/127.0.0.1:{port}, iceoryx2 mrtwin/{damper}) for {} s",
         args.rate, stand.model, stand.currents_a, stand.frequencies_hz, args.input, args.domain_id, args.duration
@@ -107,8 +183,6 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     let mut node = TwinNode::new(twin.clone(), "/mrtwin_twin").context("start the twin node")?;
     let mut stand_node =
         StandNode::new(stand.clone(), "/mrtwin_stand").context("start the stand node")?;
-
-    // A monitor that counts the twin's outputs on every transport.
     let settings = TransportSettings::new(
         &damper,
         "/mrtwin_monitor",
@@ -116,69 +190,11 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         &stand.zenoh,
         &twin.iceoryx2,
     );
-    let counts: Arc<[AtomicU64; 3]> = Arc::new(Default::default());
+    let counts: Counts = Arc::new(Default::default());
+    let whatif: WhatIf = Arc::new(Default::default());
     let done = Arc::new(AtomicBool::new(false));
-    let mut monitors = Vec::new();
-    for (i, &k) in all.iter().enumerate() {
-        monitors.push((
-            i,
-            open(k, &settings, &[], &[Topic::Output])
-                .with_context(|| format!("open the {k} monitor"))?,
-        ));
-    }
-    let monitor = {
-        let counts = counts.clone();
-        let done = done.clone();
-        std::thread::spawn(move || {
-            let mut inbox = Vec::new();
-            while !done.load(Ordering::Relaxed) {
-                for (i, t) in &mut monitors {
-                    inbox.clear();
-                    let _ = t.poll(&mut inbox);
-                    let n = inbox
-                        .iter()
-                        .filter(|m| matches!(m, Message::Output(_)))
-                        .count();
-                    counts[*i].fetch_add(n as u64, Ordering::Relaxed);
-                }
-                std::thread::sleep(Duration::from_millis(1));
-            }
-        })
-    };
-    // A local controller asking "what force with 2 A now?" at 100 Hz over iceoryx2.
-    let whatif = Arc::new([AtomicU64::new(0), AtomicU64::new(0)]);
-    let controller = {
-        let cfg = settings.iceoryx2_config();
-        let done = done.clone();
-        let whatif = whatif.clone();
-        std::thread::spawn(move || -> Result<()> {
-            let mut client = ControlClient::new(&cfg)?;
-            client.wait_for_server(Duration::from_secs(5))?;
-            let mut seq = 0;
-            while !done.load(Ordering::Relaxed) {
-                seq += 1;
-                let now = SystemTime::now()
-                    .duration_since(UNIX_EPOCH)
-                    .map_or(0, |d| d.as_nanos() as i64);
-                let req = ShmRequest {
-                    kind: ShmRequest::PLANNED_CURRENT,
-                    reserved: 0,
-                    sample: ShmSample {
-                        seq,
-                        time_ns: now,
-                        current_a: 2.0,
-                        temperature_c: f64::NAN,
-                        ..Default::default()
-                    },
-                };
-                if let Ok(r) = client.request(&req, Duration::from_millis(100)) {
-                    whatif[usize::from(r.rejected != 0)].fetch_add(1, Ordering::Relaxed);
-                }
-                std::thread::sleep(Duration::from_millis(10));
-            }
-            Ok(())
-        })
-    };
+    let monitor = spawn_monitor(&settings, counts.clone(), done.clone())?;
+    let controller = spawn_controller(settings.iceoryx2_config(), whatif.clone(), done.clone());
     let duration = Duration::from_secs_f64(args.duration);
     let stand_stop = done.clone();
     let stand_thread =
@@ -212,10 +228,23 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     let ctrl = controller
         .join()
         .map_err(|_| anyhow::anyhow!("controller thread panicked"))?;
-    let c = summary.counters;
     println!("\nsummary");
     println!("  stand: {} samples generated, {} messages published on {} transports, max lateness {:.2} ms",
-        stand_summary.generated, stand_summary.published, all.len(), stand_summary.max_lateness_s * 1e3);
+        stand_summary.generated, stand_summary.published, stand.transports.len(), stand_summary.max_lateness_s * 1e3);
+    print_twin_summary(args, &node, &summary, &counts, &whatif, ctrl);
+    Ok(())
+}
+
+/// The twin's part of the summary: stream, outputs per transport, what-ifs, τ0, health.
+fn print_twin_summary(
+    args: &DemoArgs,
+    node: &TwinNode,
+    summary: &LiveStats,
+    counts: &Counts,
+    whatif: &WhatIf,
+    controller: Result<()>,
+) {
+    let c = summary.counters;
     println!(
         "  twin:  {} samples received on {}, {} stepped, {} dropped, {} gaps",
         c.received,
@@ -234,7 +263,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         "  what-if requests over iceoryx2: {} answered, {} rejected{}",
         whatif[0].load(Ordering::Relaxed),
         whatif[1].load(Ordering::Relaxed),
-        match ctrl {
+        match controller {
             Ok(()) => String::new(),
             Err(e) => format!(" (controller: {e:#})"),
         }
@@ -244,15 +273,14 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         println!(
             "  yield stress: no estimate yet (needs post-yield strokes both ways at a current)"
         );
-    } else {
-        for e in curve {
-            println!(
-                "  yield stress at {:.2} A: {:.1} ± {:.1} kPa",
-                e.current_a,
-                e.tau0_pa / 1e3,
-                e.tau0_std_pa / 1e3
-            );
-        }
+    }
+    for e in curve {
+        println!(
+            "  yield stress at {:.2} A: {:.1} ± {:.1} kPa",
+            e.current_a,
+            e.tau0_pa / 1e3,
+            e.tau0_std_pa / 1e3
+        );
     }
     for ch in &summary.checks {
         println!(
@@ -262,5 +290,4 @@ pub fn run(args: &DemoArgs) -> Result<()> {
             ch.message
         );
     }
-    Ok(())
 }

@@ -17,6 +17,7 @@ mod diagnose;
 mod identify;
 mod info;
 mod live;
+mod logging;
 mod loops;
 mod nodes;
 mod numbers;
@@ -25,6 +26,7 @@ mod plot;
 mod record;
 mod replay;
 mod simulate;
+mod stop;
 mod yield_stress;
 
 use std::process::ExitCode;
@@ -35,6 +37,9 @@ use clap::{Parser, Subcommand};
 #[derive(Debug, Parser)]
 #[command(name = "mrtwin", version)]
 struct Cli {
+    /// Log level of mrtwin's messages on standard error (ROS 2 console format).
+    #[arg(long, global = true, value_enum, default_value = "info")]
+    log_level: logging::LogLevel,
     #[command(subcommand)]
     command: Command,
 }
@@ -69,9 +74,26 @@ enum Command {
     Identify(identify::IdentifyArgs),
 }
 
+impl Command {
+    /// The logger name of the command's log lines (the node's default name for nodes).
+    fn logger(&self) -> &'static str {
+        match self {
+            Command::Node(_) => "mrtwin_twin",
+            Command::Stand(_) => "mrtwin_stand",
+            Command::Record(_) => "mrtwin_record",
+            Command::Demo(_) => "mrtwin_demo",
+            Command::Launch(_) => "mrtwin_launch",
+            Command::Replay(_) => "mrtwin_replay",
+            _ => "mrtwin",
+        }
+    }
+}
+
 fn main() -> ExitCode {
+    #[cfg(feature = "iceoryx2")]
     bridge::iceoryx2::quiet_logs();
     let cli = Cli::parse();
+    logging::init(cli.log_level, cli.command.logger());
     let result = match &cli.command {
         Command::Simulate(args) => simulate::run(args),
         Command::YieldStress(args) => yield_stress::run(args),

@@ -6,8 +6,7 @@
 
 use std::path::PathBuf;
 use std::process::{Child, Command};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
@@ -18,6 +17,7 @@ use node::runner::{StopWhen, TwinNode};
 use node::stand::{StandNode, StandParams};
 
 use crate::live::live_line;
+use crate::stop::stop_flag;
 
 /// Arguments of `mrtwin node` and `mrtwin stand`.
 #[derive(Debug, Args)]
@@ -37,15 +37,6 @@ pub struct NodeArgs {
     pub ros_args: Vec<String>,
 }
 
-/// Ctrl-C / SIGTERM set this flag; the nodes stop at their next loop turn.
-pub fn stop_flag() -> Result<Arc<AtomicBool>> {
-    let flag = Arc::new(AtomicBool::new(false));
-    let f = flag.clone();
-    ctrlc::set_handler(move || f.store(true, Ordering::Relaxed))
-        .context("install the Ctrl-C handler")?;
-    Ok(flag)
-}
-
 fn duration(d: Option<f64>) -> Result<Option<Duration>> {
     match d {
         None => Ok(None),
@@ -62,7 +53,7 @@ pub fn run_twin(args: &NodeArgs) -> Result<()> {
     let stop = stop_flag()?;
     let mut node =
         TwinNode::new(params, &name).with_context(|| format!("start twin node {name}"))?;
-    eprintln!("{name}: running (Ctrl-C stops)");
+    tracing::info!(node = %name, "running (Ctrl-C stops)");
     let deadline = duration(args.duration)?.map(|d| Instant::now() + d);
     let verbose = args.verbose;
     let last = node.run(
@@ -100,7 +91,7 @@ pub fn run_stand(args: &NodeArgs) -> Result<()> {
     let stop = stop_flag()?;
     let mut stand =
         StandNode::new(params, &name).with_context(|| format!("start stand node {name}"))?;
-    eprintln!("{name}: playing (Ctrl-C stops)");
+    tracing::info!(node = %name, "playing (Ctrl-C stops)");
     let s = stand.run(Some(&stop), duration(args.duration)?)?;
     println!(
         "{name}: stopped: {} samples generated, {} messages published, {} errors, max lateness {:.2} ms",
@@ -143,7 +134,7 @@ pub fn run_launch(args: &LaunchArgs) -> Result<()> {
         cmd.args(n.ros_args(&base));
         let label = n.name.clone().unwrap_or_else(|| n.exec.clone());
         let child = cmd.spawn().with_context(|| format!("start {label}"))?;
-        eprintln!("launch: started {label} (pid {})", child.id());
+        tracing::info!(node = %label, pid = child.id(), "started");
         children.push((label, child));
     }
     let deadline = duration(args.duration)?.map(|d| Instant::now() + d);
@@ -175,7 +166,7 @@ pub fn run_launch(args: &LaunchArgs) -> Result<()> {
                 break;
             }
             if Instant::now() > until {
-                eprintln!("launch: {label} did not stop in 10 s, killing it");
+                tracing::warn!(node = %label, "did not stop in 10 s, killing it");
                 let _ = c.kill();
                 let _ = c.wait();
                 break;

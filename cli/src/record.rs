@@ -84,15 +84,16 @@ pub fn run(args: &RecordArgs) -> Result<()> {
         },
     )
     .with_context(|| format!("create bag {}", args.out.display()))?;
-    let stop = crate::nodes::stop_flag()?;
+    let stop = crate::stop::stop_flag()?;
     let deadline = args
         .duration
         .map(|d| Instant::now() + Duration::from_secs_f64(d.max(0.0)));
-    eprintln!(
-        "{name}: recording {:?} from {} into {} (Ctrl-C stops)",
-        topics.iter().map(|t| t.ros_name()).collect::<Vec<_>>(),
-        args.transport,
-        args.out.display()
+    tracing::info!(
+        node = %name,
+        topics = ?topics.iter().map(|t| t.ros_name()).collect::<Vec<_>>(),
+        transport = %args.transport,
+        out = %args.out.display(),
+        "recording (Ctrl-C stops)"
     );
     let mut inbox = Vec::new();
     let mut errors = 0u64;
@@ -101,7 +102,8 @@ pub fn run(args: &RecordArgs) -> Result<()> {
             break;
         }
         inbox.clear();
-        if transport.poll(&mut inbox).is_err() {
+        if let Err(e) = transport.poll(&mut inbox) {
+            tracing::warn!(transport = %args.transport, error = %e, "poll failed");
             errors += 1;
         }
         let now_ns = SystemTime::now()

@@ -12,15 +12,15 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use bridge::bag::{BagWriter, BagWriterOptions};
-use bridge::transport::{Message, Topic};
+use bridge::transport::{Message, Topic, Transport};
 use clap::Args;
 use launch_config::load_params;
-use msgs::{Clock, Float64, Time};
+use msgs::{Clock, Time};
 use node::conditioning::SensorSample;
 use node::config::{TwinNodeParams, TWIN_NODE};
-use node::diagnostics::{diagnostic_array, level_byte};
+use node::core::TwinCore;
+use node::diagnostics::level_byte;
 use node::pipeline::{Processed, TwinPipeline};
-use node::runner::{twin_output, yield_msg};
 use node::transports::{open, TransportSettings};
 
 /// Arguments of `mrtwin replay`.
@@ -46,6 +46,10 @@ pub struct ReplayArgs {
     /// Effects of the two-chamber model (overrides the parameter file).
     #[arg(long, value_name = "IDS")]
     pub effects: Option<String>,
+    /// Node name the replay speaks as (names the `/diagnostics` statuses): the twin's by
+    /// default, so a replay of a live run publishes the live run's bytes.
+    #[arg(long, value_name = "/NS/NAME", default_value = "/mrtwin_twin")]
+    pub node_name: String,
 }
 
 /// Columns of the CSV output.
@@ -69,18 +73,13 @@ pub fn replay_params(args: &ReplayArgs) -> Result<TwinNodeParams> {
         None => TwinNodeParams::default(),
     };
     if let Some(m) = &args.model {
-        p.model = m.clone();
+        p.model = m.parse().context("--model")?;
     }
     if let Some(e) = &args.effects {
-        p.effects = e.clone();
+        p.effects = e.parse().context("--effects")?;
     }
     p.validate()?;
     Ok(p)
-}
-
-/// The pipeline of a replay.
-pub fn replay_pipeline(p: &TwinNodeParams) -> Result<TwinPipeline> {
-    Ok(TwinPipeline::new(p.pipeline_config()?)?)
 }
 
 enum Sink {
@@ -102,45 +101,15 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
     if rec.is_empty() {
         bail!("{}: no samples to replay", args.input.display());
     }
-    let mut pipeline = replay_pipeline(&params)?;
-    let mut sink = match &args.out {
-        None => Sink::None,
-        Some(p) if p.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv")) => {
-            let mut s = String::with_capacity(rec.len() * 160);
-            s.push_str(CSV_HEADER);
-            s.push('\n');
-            Sink::Csv(p.clone(), s)
-        }
-        Some(p) => Sink::Bag(Box::new(
-            BagWriter::create(p, BagWriterOptions::default())
-                .with_context(|| format!("create bag {}", p.display()))?,
-        )),
+    let mut core = TwinCore::new(&params, &args.node_name)?;
+    let mut sink = Sink::open(args.out.as_deref(), rec.len())?;
+    let mut publisher = match args.publish {
+        true => Some(Publisher::open(&params, &args.node_name)?),
+        false => None,
     };
-    let mut transports = Vec::new();
-    if args.publish {
-        let settings = TransportSettings::new(
-            &params.damper,
-            "/mrtwin_replay",
-            &params.ros2,
-            &params.zenoh,
-            &params.iceoryx2,
-        );
-        let topics = [
-            Topic::Output,
-            Topic::PredictedForce,
-            Topic::YieldEstimate,
-            Topic::Diagnostics,
-            Topic::Clock,
-        ];
-        for &k in &params.transports {
-            transports.push(open(k, &settings, &topics, &[])?);
-        }
-    }
     let damper = params.damper.clone();
     let start = Instant::now();
     let t0 = rec.samples[0].time_s;
-    let mut next_yield = t0;
-    let mut next_diag = t0;
     let mut stepped = 0u64;
     for s in &rec.samples {
         if let Some(factor) = pace {
@@ -151,67 +120,21 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
             }
         }
         let sample = SensorSample::from_recording(s);
-        let processed = pipeline.process(&sample);
-        let mut out_msgs: Vec<Message> = Vec::new();
-        match processed {
-            Processed::Stepped(step) => {
-                stepped += 1;
-                out_msgs.push(Message::Output(twin_output(
-                    &step,
-                    &damper,
-                    pipeline.model_id(),
-                )));
-                out_msgs.push(Message::PredictedForce(Float64 {
-                    data: step.output.force_n,
-                }));
-                if s.time_s >= next_yield {
-                    next_yield = s.time_s + params.yield_estimate_period_s;
-                    out_msgs.push(Message::YieldEstimate(yield_msg(&pipeline, &step, &damper)));
-                }
-            }
-            Processed::Dropped(_) => {}
-        }
-        if s.time_s >= next_diag {
-            next_diag = s.time_s + params.diagnostics_period_s;
-            out_msgs.push(Message::Diagnostics(diagnostic_array(
-                "/mrtwin_replay",
-                &damper,
-                s.time_s,
-                &pipeline.checks(),
-            )));
-        }
-        match &mut sink {
-            Sink::None => {}
-            Sink::Csv(_, buf) => csv_row(buf, &sample, &processed, &pipeline),
-            Sink::Bag(w) => {
-                let t = ns(s.time_s);
-                w.write_message(&damper, &Message::Sample(sample.to_msg(&damper)), t)?;
-                for m in &out_msgs {
-                    w.write_message(&damper, m, t)?;
-                }
-            }
-        }
-        if !transports.is_empty() {
-            out_msgs.push(Message::Clock(Clock {
-                clock: Time::from_secs_f64(s.time_s),
-            }));
-            for t in &mut transports {
-                for m in &out_msgs {
-                    t.publish(m)?;
-                }
-            }
+        // Replay's clock is the recording's: the core never sees the samples stop.
+        let out = core.on_sample(&sample, s.time_s);
+        let processed = out.processed;
+        stepped += u64::from(matches!(processed, Processed::Stepped(_)));
+        let messages: Vec<Message> = out.into_messages().collect();
+        sink.write(&damper, &sample, &processed, core.pipeline(), &messages)?;
+        if let Some(p) = publisher.as_mut() {
+            p.publish(&messages, s.time_s)?;
         }
     }
     let elapsed = start.elapsed().as_secs_f64();
-    match sink {
-        Sink::None => {}
-        Sink::Csv(path, buf) => write_atomic(&path, buf.as_bytes())?,
-        Sink::Bag(w) => {
-            w.finish()?;
-        }
-    }
+    sink.finish()?;
+    let pipeline = core.pipeline();
     let c = pipeline.counters();
-    eprintln!(
+    tracing::info!(
         "replayed {} samples ({} stepped, {} dropped: NaN {}, duplicate {}, out of order {}; {} gaps) with {} in {:.3} s ({:.0} samples/s)",
         rec.len(),
         stepped,
@@ -225,6 +148,101 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
         rec.len() as f64 / elapsed.max(1e-9)
     );
     Ok(())
+}
+
+impl Sink {
+    /// The sink of `--out`: none, a CSV (by extension) or a bag directory.
+    fn open(out: Option<&Path>, rows: usize) -> Result<Self> {
+        Ok(match out {
+            None => Sink::None,
+            Some(p) if p.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv")) => {
+                let mut s = String::with_capacity(rows * 160);
+                s.push_str(CSV_HEADER);
+                s.push('\n');
+                Sink::Csv(p.to_path_buf(), s)
+            }
+            Some(p) => Sink::Bag(Box::new(
+                BagWriter::create(p, BagWriterOptions::default())
+                    .with_context(|| format!("create bag {}", p.display()))?,
+            )),
+        })
+    }
+
+    /// One sample: a CSV row, or the sample and its messages in the bag at its stamp.
+    fn write(
+        &mut self,
+        damper: &str,
+        sample: &SensorSample,
+        processed: &Processed,
+        pipeline: &TwinPipeline,
+        messages: &[Message],
+    ) -> Result<()> {
+        match self {
+            Sink::None => {}
+            Sink::Csv(_, buf) => csv_row(buf, sample, processed, pipeline),
+            Sink::Bag(w) => {
+                let t = ns(sample.time_s);
+                w.write_message(damper, &Message::Sample(sample.to_msg(damper)), t)?;
+                for m in messages {
+                    w.write_message(damper, m, t)?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn finish(self) -> Result<()> {
+        match self {
+            Sink::None => {}
+            Sink::Csv(path, buf) => write_atomic(&path, buf.as_bytes())?,
+            Sink::Bag(w) => {
+                w.finish()?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// `--publish`: the core's messages and `/clock` on the transports of the parameters.
+struct Publisher {
+    transports: Vec<Box<dyn Transport>>,
+}
+
+impl Publisher {
+    fn open(params: &TwinNodeParams, node_name: &str) -> Result<Self> {
+        let settings = TransportSettings::new(
+            &params.damper,
+            node_name,
+            &params.ros2,
+            &params.zenoh,
+            &params.iceoryx2,
+        );
+        let topics = [
+            Topic::Output,
+            Topic::PredictedForce,
+            Topic::YieldEstimate,
+            Topic::Diagnostics,
+            Topic::Clock,
+        ];
+        let transports = params
+            .transports
+            .iter()
+            .map(|&k| open(k, &settings, &topics, &[]))
+            .collect::<Result<_, _>>()?;
+        Ok(Self { transports })
+    }
+
+    fn publish(&mut self, messages: &[Message], time_s: f64) -> Result<()> {
+        let clock = Message::Clock(Clock {
+            clock: Time::from_secs_f64(time_s),
+        });
+        for t in &mut self.transports {
+            for m in messages.iter().chain([&clock]) {
+                t.publish(m)?;
+            }
+        }
+        Ok(())
+    }
 }
 
 fn csv_row(buf: &mut String, s: &SensorSample, p: &Processed, pipeline: &TwinPipeline) {

@@ -10,7 +10,7 @@ use bridge::csv::{write_csv, Recording, Sample};
 use clap::{Args, ValueEnum};
 use twin::models::{build, FluidLaw, ModelKind, ModelParams};
 use twin::stand::{run as run_stand, Noise, Programme, SimulatedSample};
-use twin::{Effect, EffectSet};
+use twin::{Effect, EffectSet, EffectsChoice};
 
 use crate::numbers::{finite, non_negative, positive};
 
@@ -80,7 +80,8 @@ pub struct SimulateArgs {
     #[arg(long, value_name = "N", default_value_t = 1)]
     pub seed: u64,
     /// Effects, comma separated ids (fluid_compressibility, gas_spring, seal_friction,
-    /// thermal_softening, field_lag, fluid_inertia), `all` or `none`; two-chamber only.
+    /// thermal_softening, field_lag, fluid_inertia), `paper`, `all` or `none`; two-chamber
+    /// only.
     /// Default: the model's own (two-chamber: fluid_compressibility,gas_spring).
     #[arg(long, value_name = "LIST")]
     pub effects: Option<String>,
@@ -141,10 +142,10 @@ impl From<FluidArg> for FluidLaw {
 pub fn run(args: &SimulateArgs) -> Result<()> {
     let kind: ModelKind = args.model.parse()?;
     let effects = match &args.effects {
-        Some(list) if list.trim() == "all" => EffectSet::all(),
-        Some(list) => EffectSet::parse_list(list).context("--effects")?,
-        None => kind.default_effects(),
+        Some(choice) => choice.parse::<EffectsChoice>().context("--effects")?,
+        None => EffectsChoice::ModelDefault,
     };
+    let effects = kind.effects(effects);
     let params = model_params(args, kind, effects)?;
     let programme = programme(args)?;
     let noise = (non_negative("--noise", args.noise)? > 0.0).then_some(Noise {

@@ -4,12 +4,22 @@
 //!
 //! Every test has its own damper name, zenoh port and iceoryx2 service prefix, and every
 //! wait is bounded.
+//!
+//! A test runs when the transports it needs are compiled in (`cargo test -p mrtwin
+//! --no-default-features --features zenoh` runs the zenoh ones); the helpers they share
+//! are then partly unused.
+#![cfg_attr(
+    not(all(feature = "ros2", feature = "zenoh", feature = "iceoryx2")),
+    allow(dead_code, unused_imports)
+)]
 
 use std::path::Path;
 use std::process::Command;
 use std::time::Duration;
 
+#[cfg(feature = "iceoryx2")]
 use bridge::iceoryx2::controller::{run_controller, ControllerOptions};
+#[cfg(feature = "iceoryx2")]
 use bridge::iceoryx2::Iceoryx2Config;
 use mrtwin_tests::{free_port, run_python, run_python_env, ChildGuard, TempDir};
 
@@ -78,6 +88,7 @@ with lock:
 "#;
 
 #[test]
+#[cfg(feature = "zenoh")]
 fn zenoh_peer_gets_twin_outputs_and_health_goes_stale_then_ok() {
     let _serial = serial();
     let dir = TempDir::new("zenoh_stale");
@@ -215,6 +226,7 @@ fn zenoh_peer_gets_twin_outputs_and_health_goes_stale_then_ok() {
 }
 
 #[test]
+#[cfg(feature = "iceoryx2")]
 fn iceoryx2_controller_process_runs_1khz_for_10s_against_the_node_without_loss() {
     let _serial = serial();
     let dir = TempDir::new("ice_loop");
@@ -308,6 +320,7 @@ rclpy.shutdown()
 "#;
 
 #[test]
+#[cfg(feature = "ros2")]
 fn rclpy_feeds_the_twin_and_reads_its_force_diagnostics_and_graph() {
     let _serial = serial();
     let dir = TempDir::new("rclpy_twin");
@@ -422,6 +435,7 @@ fn rclpy_feeds_the_twin_and_reads_its_force_diagnostics_and_graph() {
 }
 
 #[test]
+#[cfg(all(feature = "ros2", feature = "zenoh", feature = "iceoryx2"))]
 fn demo_runs_stand_and_twin_over_all_three_transports() {
     let _serial = serial();
     let o = mrtwin()
@@ -460,6 +474,7 @@ fn demo_runs_stand_and_twin_over_all_three_transports() {
 }
 
 #[test]
+#[cfg(feature = "zenoh")]
 fn launch_brings_up_twin_and_stand_and_stops_them() {
     let _serial = serial();
     let dir = TempDir::new("launch");
@@ -528,6 +543,7 @@ fn launch_brings_up_twin_and_stand_and_stops_them() {
 }
 
 #[test]
+#[cfg(feature = "zenoh")]
 fn record_killed_with_sigkill_leaves_a_readable_bag_up_to_the_last_flush() {
     let _serial = serial();
     let dir = TempDir::new("record_kill");
@@ -595,4 +611,38 @@ fn record_killed_with_sigkill_leaves_a_readable_bag_up_to_the_last_flush() {
         "samples out of order"
     );
     assert!(bag.join("metadata.yaml").exists());
+}
+
+/// A parameter file asking for a transport this build left out reads as in any build;
+/// starting the node then fails naming the transport and the feature that brings it.
+#[test]
+#[cfg(not(all(feature = "ros2", feature = "zenoh", feature = "iceoryx2")))]
+fn a_transport_left_out_of_the_build_is_named_with_its_feature() {
+    let dir = TempDir::new("not_compiled");
+    for (kind, compiled) in [
+        ("ros2", cfg!(feature = "ros2")),
+        ("zenoh", cfg!(feature = "zenoh")),
+        ("iceoryx2", cfg!(feature = "iceoryx2")),
+    ] {
+        if compiled {
+            continue;
+        }
+        let params = dir.path(&format!("{kind}.yaml"));
+        write(
+            &params,
+            &format!("mrtwin_twin:\n  ros__parameters:\n    transports: [{kind}]\n    input: {kind}\n    control_service: false\n"),
+        );
+        let o = mrtwin()
+            .args(["node", "--duration", "1", "--ros-args", "--params-file"])
+            .arg(&params)
+            .output()
+            .expect("run node");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success()
+                && err.contains(&format!("{kind}: open: not compiled"))
+                && err.contains(&format!("feature `{kind}`")),
+            "{err}"
+        );
+    }
 }

@@ -19,7 +19,7 @@ use serde::{Deserialize, Serialize};
 use twin::models::{
     BinghamParams, DirectShearParams, ModelKind, ModelParams, SpencerParams, TwoChamberParams,
 };
-use twin::EffectSet;
+use twin::EffectsChoice;
 
 use crate::conditioning::ConditioningConfig;
 use crate::transports::TransportKind;
@@ -36,10 +36,10 @@ pub struct TwinNodeParams {
     /// Damper name.
     pub damper: String,
     /// Model: bingham, spencer, direct-shear, two-chamber.
-    pub model: String,
+    pub model: ModelKind,
     /// Effects of the two-chamber model, comma separated ids, `paper`, `all` or `none`;
     /// empty: the model's defaults.
-    pub effects: String,
+    pub effects: EffectsChoice,
     /// Ambient temperature when samples carry none \[°C\].
     pub ambient_temperature_c: f64,
     /// Transports to publish on.
@@ -99,8 +99,8 @@ impl Default for TwinNodeParams {
     fn default() -> Self {
         Self {
             damper: "damper".into(),
-            model: "two-chamber".into(),
-            effects: String::new(),
+            model: ModelKind::TwoChamber,
+            effects: EffectsChoice::ModelDefault,
             ambient_temperature_c: 25.0,
             transports: vec![
                 TransportKind::Ros2,
@@ -136,30 +136,6 @@ pub struct InvalidParam {
     pub reason: String,
 }
 
-/// Model, parameters and effects of a `model`/`effects` pair.
-pub fn model_selection(
-    model: &str,
-    effects: &str,
-    params: ModelParams,
-) -> Result<(ModelKind, ModelParams, EffectSet), InvalidParam> {
-    let kind: ModelKind = model
-        .parse()
-        .map_err(|e: twin::models::UnknownModel| InvalidParam {
-            key: "model",
-            reason: e.to_string(),
-        })?;
-    let effects = match effects.trim() {
-        "" => kind.default_effects(),
-        "paper" => EffectSet::paper(),
-        "all" => EffectSet::all(),
-        list => EffectSet::parse_list(list).map_err(|e| InvalidParam {
-            key: "effects",
-            reason: e.to_string(),
-        })?,
-    };
-    Ok((kind, params, effects))
-}
-
 impl TwinNodeParams {
     /// The model parameters of the four sections.
     pub fn model_params(&self) -> ModelParams {
@@ -172,14 +148,14 @@ impl TwinNodeParams {
     }
 
     /// The pipeline these parameters describe (model, effects, conditioning, estimator,
-    /// health): the same for the live node and for replay.
+    /// health): the same for the live node and for replay. Checks the parameters first
+    /// ([`TwinNodeParams::validate`]).
     pub fn pipeline_config(&self) -> Result<crate::pipeline::PipelineConfig, InvalidParam> {
-        let (model, params, effects) =
-            model_selection(&self.model, &self.effects, self.model_params())?;
+        self.validate()?;
         Ok(crate::pipeline::PipelineConfig {
-            model,
-            params,
-            effects,
+            model: self.model,
+            params: self.model_params(),
+            effects: self.model.effects(self.effects),
             ambient_temperature_c: self.ambient_temperature_c,
             conditioning: self.conditioning.clone(),
             estimator: self
@@ -190,9 +166,9 @@ impl TwinNodeParams {
         })
     }
 
-    /// Check what serde cannot.
+    /// Check what serde cannot: ranges, and keys that must agree with each other (names,
+    /// model and effects are parsed and checked when the file is read).
     pub fn validate(&self) -> Result<(), InvalidParam> {
-        model_selection(&self.model, &self.effects, self.model_params())?;
         let positive = |key: &'static str, v: f64| {
             if v.is_finite() && v > 0.0 {
                 Ok(())
@@ -226,5 +202,81 @@ impl TwinNodeParams {
             });
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(body: &str) -> Result<TwinNodeParams, launch_config::ConfigError> {
+        launch_config::parse_params(
+            &format!("{TWIN_NODE}:\n  ros__parameters:\n{body}"),
+            "twin.yaml",
+            TWIN_NODE,
+        )
+    }
+
+    #[test]
+    fn names_are_parsed_when_the_file_is_read() {
+        let p = parse(
+            "    model: bingham\n    effects: none\n    zenoh: {mode: client}\n    ros2:\n      namespace: rig/\n      qos: {/diagnostics: {depth: 5}}\n",
+        )
+        .unwrap();
+        assert_eq!(p.model, ModelKind::Bingham);
+        assert_eq!(p.effects, EffectsChoice::List(twin::EffectSet::NONE));
+        assert_eq!(p.zenoh.mode, bridge::zenoh::ZenohMode::Client);
+        assert_eq!(p.ros2.namespace.as_str(), "/rig");
+        assert_eq!(p.ros2.qos_of(bridge::transport::Topic::Diagnostics).1, 5);
+        let p = parse("    effects: all\n").unwrap();
+        let cfg = p.pipeline_config().unwrap();
+        assert_eq!(
+            (cfg.model, cfg.effects),
+            (ModelKind::TwoChamber, twin::EffectSet::all())
+        );
+        let cfg = TwinNodeParams::default().pipeline_config().unwrap();
+        assert_eq!(cfg.effects, twin::EffectSet::paper());
+    }
+
+    #[test]
+    fn a_bad_name_is_reported_with_file_key_line_and_the_valid_names() {
+        for (body, at, wanted) in [
+            (
+                "    model: bouc-wen\n",
+                "twin.yaml line 3, key model:",
+                &["'bouc-wen'", "bingham", "two-chamber"][..],
+            ),
+            (
+                "    effects: gas_spring,magic\n",
+                "twin.yaml line 3, key effects:",
+                &["'magic'", "seal_friction"],
+            ),
+            (
+                "    zenoh:\n      mode: router\n",
+                "twin.yaml line 4, key zenoh.mode:",
+                &["router", "peer", "client"],
+            ),
+            (
+                "    ros2:\n      qos:\n        twin/nothing: {depth: 1}\n",
+                "twin.yaml line 5, key ros2.qos.twin/nothing:",
+                &["sensor/sample", "diagnostics"],
+            ),
+            (
+                "    ros2:\n      namespace: a b\n",
+                "twin.yaml line 4, key ros2.namespace:",
+                &["\"a b\""],
+            ),
+            (
+                "    transports: [zenoh, dds]\n",
+                "twin.yaml line 3, key transports[1]:",
+                &["dds", "ros2", "iceoryx2"],
+            ),
+        ] {
+            let e = parse(body).unwrap_err().to_string();
+            assert!(e.starts_with(at), "{e}");
+            for w in wanted {
+                assert!(e.contains(w), "{w} not in: {e}");
+            }
+        }
     }
 }

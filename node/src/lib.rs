@@ -7,13 +7,17 @@
 //!   and replays, so a replay gives the same numbers as the live run.
 //! * [`diagnostics`]: health checks as `diagnostic_msgs/DiagnosticArray`.
 //! * [`config`]: the nodes' `ros__parameters`.
-//! * [`runner`]: the twin node's loop over the transports (publishing, 1 Hz diagnostics,
-//!   staleness, the iceoryx2 control service).
+//! * [`core`]: the twin core: one sample in, the messages to publish out (outputs, yield
+//!   estimates, diagnostics on the sample stamps); no clock, no transport. Live, replay
+//!   and record are thin loops around it.
+//! * [`runner`]: the live twin node: the core over the transports, with the wall clock
+//!   for STALE and the iceoryx2 control service.
 //! * [`stand`]: the simulated test stand as a live, real-time paced sensor stream, with
 //!   optional faults.
 
 pub mod conditioning;
 pub mod config;
+pub mod core;
 pub mod diagnostics;
 pub mod pipeline;
 pub mod runner;

@@ -82,14 +82,9 @@ pub struct TwinPipeline {
     health: HealthMonitor,
     last_input: Option<DamperInput>,
     rod_area_m2: Option<f64>,
-    /// Worst health level, re-evaluated every [`LEVEL_PERIOD_S`] of sample time (building
-    /// every check costs a few µs; the checks' windows move in 0.2 s blocks anyway).
+    /// Worst health level after the last sample.
     level: Level,
-    level_time_s: f64,
 }
-
-/// Sample time between two evaluations of the worst health level \[s\].
-pub const LEVEL_PERIOD_S: f64 = 0.01;
 
 impl TwinPipeline {
     /// Build the model and the estimator.
@@ -111,7 +106,6 @@ impl TwinPipeline {
             last_input: None,
             rod_area_m2,
             level: Level::Stale,
-            level_time_s: f64::NEG_INFINITY,
             cfg,
         })
     }
@@ -151,17 +145,14 @@ impl TwinPipeline {
         self.health.checks()
     }
 
-    /// Worst health level (as of the last evaluation, at most [`LEVEL_PERIOD_S`] of sample
-    /// time ago).
+    /// Worst health level after the last sample (judged without building the checks'
+    /// messages, so it is cheap enough for every sample).
     pub fn health_level(&self) -> Level {
         self.level
     }
 
-    fn refresh_level(&mut self, time_s: f64) {
-        if time_s.is_nan() || time_s - self.level_time_s >= LEVEL_PERIOD_S {
-            self.level = self.health.level();
-            self.level_time_s = time_s;
-        }
+    fn refresh_level(&mut self) {
+        self.level = self.health.level();
     }
 
     fn input_of(&self, s: &SensorSample, dt: Option<f64>) -> DamperInput {
@@ -199,7 +190,7 @@ impl TwinPipeline {
                     rejected: true,
                     gas_preload_pa: None,
                 });
-                self.refresh_level(s.time_s);
+                self.refresh_level();
                 return Processed::Dropped(d);
             }
         };
@@ -244,7 +235,7 @@ impl TwinPipeline {
             rejected: matches!(outcome, Some(UpdateOutcome::Rejected(_))),
             gas_preload_pa,
         });
-        self.refresh_level(s.time_s);
+        self.refresh_level();
         Processed::Stepped(TwinStep {
             sample: *s,
             output,

@@ -12,12 +12,14 @@ use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
 use serde::{Deserialize, Serialize};
 use twin::models::{
-    build, BinghamParams, DirectShearParams, ModelParams, SpencerParams, TwoChamberParams,
+    build, BinghamParams, DirectShearParams, ModelKind, ModelParams, SpencerParams,
+    TwoChamberParams,
 };
 use twin::stand::Programme;
+use twin::EffectsChoice;
 
 use crate::conditioning::SensorSample;
-use crate::config::{model_selection, InvalidParam};
+use crate::config::InvalidParam;
 use crate::runner::NodeError;
 use crate::transports::{open, TransportKind, TransportSettings};
 
@@ -46,9 +48,9 @@ pub struct StandParams {
     /// Damper name.
     pub damper: String,
     /// Model that plays the damper.
-    pub model: String,
+    pub model: ModelKind,
     /// Its effects (see the twin node).
-    pub effects: String,
+    pub effects: EffectsChoice,
     /// Stroke amplitude \[m\].
     pub amplitude_m: f64,
     /// Frequencies \[Hz\] (inner loop of the programme).
@@ -91,8 +93,8 @@ impl Default for StandParams {
     fn default() -> Self {
         Self {
             damper: "damper".into(),
-            model: "two-chamber".into(),
-            effects: String::new(),
+            model: ModelKind::TwoChamber,
+            effects: EffectsChoice::ModelDefault,
             amplitude_m: 0.010,
             frequencies_hz: vec![1.0, 2.0, 4.0],
             currents_a: vec![0.5, 1.0, 2.0],
@@ -185,7 +187,6 @@ impl StandNode {
     /// Open the transports.
     pub fn new(params: StandParams, node_name: &str) -> Result<Self, NodeError> {
         params.validate()?;
-        model_selection(&params.model, &params.effects, params.model_params())?;
         let settings = TransportSettings::new(
             &params.damper,
             node_name,
@@ -207,8 +208,7 @@ impl StandNode {
         duration: Option<Duration>,
     ) -> Result<StandSummary, NodeError> {
         let p = &self.params;
-        let (kind, mp, effects) = model_selection(&p.model, &p.effects, p.model_params())?;
-        let mut model = build(kind, &mp, effects)?;
+        let mut model = build(p.model, &p.model_params(), p.model.effects(p.effects))?;
         let programme = p.programme();
         let cycle = programme.sample_count().max(1);
         let noise = Normal::new(0.0, p.noise_n.max(1e-300)).expect("σ > 0");
@@ -296,7 +296,10 @@ impl StandNode {
                 for t in &mut self.transports {
                     match t.publish(&msg) {
                         Ok(()) => summary.published += 1,
-                        Err(_) => summary.errors += 1,
+                        Err(e) => {
+                            tracing::warn!(transport = t.name(), error = %e, "publish failed");
+                            summary.errors += 1;
+                        }
                     }
                 }
             }

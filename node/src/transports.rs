@@ -78,7 +78,7 @@ impl TransportSettings {
         zenoh: &bridge::zenoh::ZenohConfig,
         iceoryx2: &bridge::iceoryx2::Iceoryx2Config,
     ) -> Self {
-        let (namespace, name) = crate::runner::split_name(node_fqn);
+        let (namespace, name) = split_name(node_fqn);
         Self {
             damper: damper.to_string(),
             node_name: name.to_string(),
@@ -99,27 +99,106 @@ impl TransportSettings {
     }
 }
 
-/// Open one adapter.
+/// Open one adapter. A transport this build does not hold (its cargo feature was off) is
+/// an error naming the transport and the feature.
 pub fn open(
     kind: TransportKind,
     s: &TransportSettings,
     publish: &[Topic],
     subscribe: &[Topic],
 ) -> Result<Box<dyn Transport>, TransportError> {
-    Ok(match kind {
+    match kind {
+        #[cfg(feature = "ros2")]
         TransportKind::Ros2 => {
             let mut c = s.ros2.clone();
             c.node_name = s.node_name.clone();
-            c.namespace = s.namespace.clone();
-            Box::new(bridge::ros2::Ros2Transport::new(&c, publish, subscribe)?)
+            c.namespace = s
+                .namespace
+                .parse()
+                .map_err(|e| TransportError::new("ros2", "node namespace", e))?;
+            Ok(Box::new(bridge::ros2::Ros2Transport::new(
+                &c, publish, subscribe,
+            )?))
         }
-        TransportKind::Zenoh => Box::new(bridge::zenoh::ZenohTransport::new(
+        #[cfg(feature = "zenoh")]
+        TransportKind::Zenoh => Ok(Box::new(bridge::zenoh::ZenohTransport::new(
             &s.zenoh, &s.damper, publish, subscribe,
-        )?),
-        TransportKind::Iceoryx2 => Box::new(bridge::iceoryx2::Iceoryx2Transport::new(
+        )?)),
+        #[cfg(feature = "iceoryx2")]
+        TransportKind::Iceoryx2 => Ok(Box::new(bridge::iceoryx2::Iceoryx2Transport::new(
             &s.iceoryx2_config(),
             publish,
             subscribe,
-        )?),
-    })
+        )?)),
+        #[cfg(not(all(feature = "ros2", feature = "zenoh", feature = "iceoryx2")))]
+        missing => {
+            let _ = (s, publish, subscribe);
+            Err(not_compiled(missing))
+        }
+    }
+}
+
+// `ControlClient`: the client of the iceoryx2 control service (a local controller's side),
+// bridge's when the `iceoryx2` feature is on. Without it, a type with no values whose `new`
+// reports that iceoryx2 is not compiled in, so callers need no feature gates of their own.
+#[cfg(not(feature = "iceoryx2"))]
+pub use absent::ControlClient;
+#[cfg(feature = "iceoryx2")]
+pub use bridge::iceoryx2::ControlClient;
+
+#[cfg(not(feature = "iceoryx2"))]
+mod absent {
+    use std::time::Duration;
+
+    use bridge::iceoryx2::Iceoryx2Config;
+    use bridge::transport::TransportError;
+    use msgs::shm::{ShmPrediction, ShmRequest};
+
+    use super::{not_compiled, TransportKind};
+
+    /// The control client of a build without iceoryx2: it cannot be created.
+    #[derive(Debug)]
+    pub enum ControlClient {}
+
+    impl ControlClient {
+        /// Always the error that iceoryx2 is not compiled in.
+        pub fn new(_cfg: &Iceoryx2Config) -> Result<Self, TransportError> {
+            Err(not_compiled(TransportKind::Iceoryx2))
+        }
+
+        /// Unreachable: there is no client.
+        pub fn wait_for_server(&self, _timeout: Duration) -> Result<(), TransportError> {
+            match *self {}
+        }
+
+        /// Unreachable: there is no client.
+        pub fn request(
+            &mut self,
+            _req: &ShmRequest,
+            _timeout: Duration,
+        ) -> Result<ShmPrediction, TransportError> {
+            match *self {}
+        }
+    }
+}
+
+/// The error of asking for a transport this build does not hold.
+pub fn not_compiled(kind: TransportKind) -> TransportError {
+    TransportError::new(
+        kind.name(),
+        "open",
+        format!(
+            "not compiled into this build; rebuild with the cargo feature `{kind}` \
+             (e.g. cargo build --release -p mrtwin --features {kind})"
+        ),
+    )
+}
+
+/// `/ns/name` → (`/ns`, `name`); `name` → (`/`, `name`).
+pub fn split_name(fqn: &str) -> (&str, &str) {
+    match fqn.rfind('/') {
+        Some(0) => ("/", &fqn[1..]),
+        Some(i) => (&fqn[..i], &fqn[i + 1..]),
+        None => ("/", fqn),
+    }
 }

@@ -3,6 +3,8 @@
 use std::fmt;
 use std::str::FromStr;
 
+use serde::{Deserialize, Serialize};
+
 /// One physical effect beyond the incompressible Bingham flow-mode damper.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Effect {
@@ -147,9 +149,76 @@ impl fmt::Display for EffectSet {
     }
 }
 
+/// The effects asked for, as parameter files and the command line name them: empty (the
+/// model's own, [`crate::models::ModelKind::default_effects`]), `paper` ([`EffectSet::paper`]), `all`,
+/// `none`, or a comma list of ids. Parsed once, where the text is read; an unknown id is
+/// an error listing the known ones.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(try_from = "String", into = "String")]
+pub enum EffectsChoice {
+    /// The model's own effects (written as the empty string).
+    #[default]
+    ModelDefault,
+    /// The model of Graczykowski & Pawłowski (`paper`).
+    Paper,
+    /// Every effect (`all`).
+    All,
+    /// Exactly these (`none` or a comma list of ids).
+    List(EffectSet),
+}
+
+impl EffectsChoice {
+    /// The effect set, with `model_default` standing for the model's own.
+    pub fn resolve(self, model_default: EffectSet) -> EffectSet {
+        match self {
+            EffectsChoice::ModelDefault => model_default,
+            EffectsChoice::Paper => EffectSet::paper(),
+            EffectsChoice::All => EffectSet::all(),
+            EffectsChoice::List(set) => set,
+        }
+    }
+}
+
+impl FromStr for EffectsChoice {
+    type Err = UnknownEffect;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Ok(match s.trim() {
+            "" => EffectsChoice::ModelDefault,
+            "paper" => EffectsChoice::Paper,
+            "all" => EffectsChoice::All,
+            list => EffectsChoice::List(EffectSet::parse_list(list)?),
+        })
+    }
+}
+
+impl TryFrom<String> for EffectsChoice {
+    type Error = UnknownEffect;
+    fn try_from(s: String) -> Result<Self, Self::Error> {
+        s.parse()
+    }
+}
+
+impl fmt::Display for EffectsChoice {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            EffectsChoice::ModelDefault => Ok(()),
+            EffectsChoice::Paper => f.write_str("paper"),
+            EffectsChoice::All => f.write_str("all"),
+            EffectsChoice::List(set) => set.fmt(f),
+        }
+    }
+}
+
+impl From<EffectsChoice> for String {
+    fn from(c: EffectsChoice) -> Self {
+        c.to_string()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::models::ModelKind;
 
     #[test]
     fn parse_and_print_round_trip() {
@@ -159,5 +228,40 @@ mod tests {
         assert_eq!(EffectSet::parse_list("none").unwrap(), EffectSet::NONE);
         let err = EffectSet::parse_list("gas_spring,magic").unwrap_err();
         assert!(err.to_string().contains("'magic'"));
+    }
+
+    #[test]
+    fn choices_parse_print_and_resolve() {
+        for (text, choice) in [
+            ("", EffectsChoice::ModelDefault),
+            (" paper ", EffectsChoice::Paper),
+            ("all", EffectsChoice::All),
+            ("none", EffectsChoice::List(EffectSet::NONE)),
+            (
+                "seal_friction,field_lag",
+                EffectsChoice::List(EffectSet::from_iter([
+                    Effect::SealFriction,
+                    Effect::FieldLag,
+                ])),
+            ),
+        ] {
+            let parsed: EffectsChoice = text.parse().unwrap();
+            assert_eq!(parsed, choice, "{text:?}");
+            assert_eq!(parsed.to_string().parse::<EffectsChoice>().unwrap(), choice);
+        }
+        assert_eq!(
+            ModelKind::TwoChamber.effects(EffectsChoice::ModelDefault),
+            EffectSet::paper()
+        );
+        assert_eq!(
+            ModelKind::Bingham.effects(EffectsChoice::ModelDefault),
+            EffectSet::NONE
+        );
+        assert_eq!(
+            ModelKind::Bingham.effects(EffectsChoice::All),
+            EffectSet::all()
+        );
+        let err = "gas_spring,magic".parse::<EffectsChoice>().unwrap_err();
+        assert!(err.to_string().contains("'magic'") && err.to_string().contains("gas_spring"));
     }
 }

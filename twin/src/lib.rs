@@ -25,6 +25,6 @@ pub mod model;
 pub mod models;
 pub mod stand;
 
-pub use effects::{Effect, EffectSet};
+pub use effects::{Effect, EffectSet, EffectsChoice};
 pub use model::{DamperInput, DamperModel, DamperOutput};
 pub use models::{ModelKind, ModelParams};

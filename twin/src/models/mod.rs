@@ -25,8 +25,10 @@ pub fn quadratic_in_current(c: &[f64; 3], current_a: f64) -> f64 {
     (c[0] + c[1] * i + c[2] * i * i).max(0.0)
 }
 
-/// The models mrtwin knows.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+/// The models mrtwin knows. In parameter files and on the command line by
+/// [`ModelKind::name`]; an unknown name is an error listing the known ones.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(try_from = "String", into = "String")]
 pub enum ModelKind {
     /// Bingham baseline F = f_c sgn v + c0 v + f0.
     Bingham,
@@ -39,6 +41,11 @@ pub enum ModelKind {
 }
 
 impl ModelKind {
+    /// The effects a choice names for this model (`ModelDefault`: [`Self::default_effects`]).
+    pub fn effects(self, choice: crate::effects::EffectsChoice) -> EffectSet {
+        choice.resolve(self.default_effects())
+    }
+
     /// Every model.
     pub const ALL: [ModelKind; 4] = [
         ModelKind::Bingham,
@@ -97,6 +104,19 @@ impl FromStr for ModelKind {
             .into_iter()
             .find(|m| m.name() == s.trim())
             .ok_or_else(|| UnknownModel(s.trim().to_string()))
+    }
+}
+
+impl TryFrom<String> for ModelKind {
+    type Error = UnknownModel;
+    fn try_from(s: String) -> Result<Self, Self::Error> {
+        s.parse()
+    }
+}
+
+impl From<ModelKind> for String {
+    fn from(m: ModelKind) -> Self {
+        m.name().to_string()
     }
 }
 
