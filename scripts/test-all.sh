@@ -39,7 +39,8 @@ fi
 # (cli/tests/live.rs: the node, stand, launch and record over that transport, and the
 # error that names a transport left out of the build): the rest of mrtwin's tests use no
 # transport and ran above, and the dependencies are already built, so each subset
-# recompiles only bridge, node and the binary (a few minutes in all, not a second suite).
+# recompiles only bridge, node and the binary: about 2 minutes per transport on the 2-core
+# machine (check, build, 2–4 live tests), not a second suite.
 for transport in ros2 zenoh iceoryx2; do
   echo "== mrtwin with $transport only"
   cargo clippy -p mrtwin --no-default-features --features "$transport" --all-targets --release -- -D warnings
