@@ -3,6 +3,8 @@
 //!
 //! `cargo bench -p bridge --bench bag`
 
+#![allow(missing_docs)] // criterion_group! generates an undocumented pub fn.
+
 use std::path::PathBuf;
 
 use bridge::bag::{self, BagCompression, BagWriter, BagWriterOptions};

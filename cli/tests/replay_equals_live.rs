@@ -9,7 +9,7 @@
 #![cfg(feature = "zenoh")]
 
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
 
@@ -45,33 +45,33 @@ fn announces_silence(m: &Message) -> bool {
         .any(|s| s.name.ends_with("sensor stream") && s.level == msgs::DiagnosticStatus::STALE)
 }
 
-#[test]
-fn replaying_the_samples_of_a_live_run_publishes_the_same_bytes() {
-    let dir = TempDir::new("replay_equals_live");
+/// One live run: recorder (zenoh listener), twin node and stand (both connecting to it),
+/// 3 s of samples at 500 Hz. Returns the recorded bag and the twin's parameter file.
+fn live_run(dir: &TempDir, attempt: u32) -> (PathBuf, PathBuf) {
     let port = free_port();
-    let damper = format!("rl{}", std::process::id());
-    let twin = dir.path("twin.yaml");
+    let damper = format!("rl{}x{attempt}", std::process::id());
+    let twin = dir.path(&format!("twin{attempt}.yaml"));
     write(
         &twin,
         &format!(
             "mrtwin_twin:\n  ros__parameters:\n    damper: {damper}\n    model: two-chamber\n    transports: [zenoh]\n    input: zenoh\n    control_service: false\n    zenoh:\n      multicast_scouting: false\n      connect: [\"tcp/127.0.0.1:{port}\"]\n"
         ),
     );
-    let stand = dir.path("stand.yaml");
+    let stand = dir.path(&format!("stand{attempt}.yaml"));
     write(
         &stand,
         &format!(
             "mrtwin_stand:\n  ros__parameters:\n    damper: {damper}\n    model: two-chamber\n    transports: [zenoh]\n    rate_hz: 500.0\n    currents_a: [0.5, 1.5]\n    frequencies_hz: [2.0]\n    segment_duration_s: 1.5\n    noise_n: 5.0\n    zenoh:\n      multicast_scouting: false\n      connect: [\"tcp/127.0.0.1:{port}\"]\n"
         ),
     );
-    let recorder = dir.path("recorder.yaml");
+    let recorder = dir.path(&format!("recorder{attempt}.yaml"));
     write(
         &recorder,
         &format!(
             "/**:\n  ros__parameters:\n    damper: {damper}\n    zenoh:\n      multicast_scouting: false\n      listen: [\"tcp/127.0.0.1:{port}\"]\n"
         ),
     );
-    let live_bag = dir.path("live");
+    let live_bag = dir.path(&format!("live{attempt}"));
     let rec = ChildGuard::spawn(mrtwin().args([
         "record",
         "--out",
@@ -113,6 +113,52 @@ fn replaying_the_samples_of_a_live_run_publishes_the_same_bytes() {
     let (ok, _, err) = rec.wait(Duration::from_secs(20));
     assert!(ok, "recorder failed: {err}");
 
+    (live_bag, twin)
+}
+
+/// Stamps of the samples in the bag and of the outputs the node published.
+fn stamps(bag: &BTreeMap<Topic, Vec<(Message, Vec<u8>)>>) -> (Vec<f64>, Vec<f64>) {
+    let of = |topic: Topic| -> Vec<f64> {
+        bag.get(&topic)
+            .into_iter()
+            .flatten()
+            .filter_map(|(m, _)| match m {
+                Message::Sample(s) => Some(s.header.stamp.as_secs_f64()),
+                Message::Output(o) => Some(o.header.stamp.as_secs_f64()),
+                _ => None,
+            })
+            .collect()
+    };
+    (of(Topic::Sample), of(Topic::Output))
+}
+
+#[test]
+fn replaying_the_samples_of_a_live_run_publishes_the_same_bytes() {
+    let dir = TempDir::new("replay_equals_live");
+    // The comparison needs the node and the recorder to have seen the same samples.
+    // Samples travel best effort (sensor-data QoS), so on a loaded machine one can be
+    // lost on either path; such a run proves nothing either way and is repeated (at most
+    // three runs). A lost sample is recognised by its stamp, not by the bytes compared.
+    let mut runs = Vec::new();
+    let (live_bag, twin, live) = loop {
+        let attempt = runs.len() as u32;
+        let (bag, twin) = live_run(&dir, attempt);
+        let live = by_topic(&bag);
+        let (samples, outputs) = stamps(&live);
+        if !samples.is_empty() && samples == outputs {
+            break (bag, twin, live);
+        }
+        runs.push(format!(
+            "run {attempt}: {} samples recorded, {} outputs published",
+            samples.len(),
+            outputs.len()
+        ));
+        assert!(
+            runs.len() < 3,
+            "samples lost in every run:\n{}",
+            runs.join("\n")
+        );
+    };
     let replay_bag = dir.path("replay");
     let o = mrtwin()
         .args(["replay", live_bag.to_str().unwrap(), "--params"])
@@ -123,7 +169,6 @@ fn replaying_the_samples_of_a_live_run_publishes_the_same_bytes() {
         .expect("run replay");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 
-    let live = by_topic(&live_bag);
     let replay = by_topic(&replay_bag);
     let samples = live.get(&Topic::Sample).map_or(0, Vec::len);
     // 3 s at 500 Hz.

@@ -11,6 +11,8 @@
 //! * `health level (per sample)` — the worst level alone, no message formatted;
 //! * `twin + estimation + health` — model step, update, at_current and observe together.
 
+#![allow(missing_docs)] // criterion_group! generates an undocumented pub fn.
+
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use estimation::health::{HealthConfig, HealthMonitor, Observation};
 use estimation::online::{force_per_pa, EstimatorConfig, EstimatorSample, YieldEstimator};

@@ -4,6 +4,8 @@
 //!
 //! `cargo bench -p node --bench replay`
 
+#![allow(missing_docs)] // criterion_group! generates an undocumented pub fn.
+
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use node::conditioning::SensorSample;
 use node::pipeline::{PipelineConfig, TwinPipeline};

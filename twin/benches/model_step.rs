@@ -4,6 +4,8 @@
 //! cycling through a precomputed second of input. The Bingham baseline (algebraic) is the
 //! reference floor measured in the same run.
 
+#![allow(missing_docs)] // criterion_group! generates an undocumented pub fn.
+
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use std::hint::black_box;
 use twin::models::{
