@@ -6,8 +6,10 @@
 #
 #   bash scripts/bench-build.sh [REFERENCE_COMMIT]     (default: 677152a, before issue 11)
 #
-# Crate count: packages in the dependency graph of `mrtwin` with default features, normal
-# and build dependencies (what a release build compiles), from `cargo tree`.
+# WORK_TARGET=DIR keeps the working tree's fresh target directory there afterwards.
+#
+# Crate count: packages in the normal dependency graph of `mrtwin` with default features,
+# from `cargo tree -e normal` (the method that gives the issue's 448 for the reference).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ref=${1:-677152a}
@@ -16,8 +18,8 @@ trap 'git worktree remove --force "$work/ref" >/dev/null 2>&1 || true; rm -rf "$
 git worktree add --detach "$work/ref" "$ref" >/dev/null
 
 count() { # $1: repository dir
-  (cd "$1" && cargo tree -p mrtwin -e normal,build --prefix none --format '{p}' 2>/dev/null |
-    sed 's/ (.*//; s/ (\*)//' | sort -u | wc -l)
+  (cd "$1" && cargo tree -p mrtwin -e normal --prefix none 2>/dev/null |
+    sed 's/ (\*)$//' | sort -u | wc -l)
 }
 build() { # $1: repository dir, $2: target dir; prints seconds
   local t0 t1
@@ -30,8 +32,13 @@ build() { # $1: repository dir, $2: target dir; prints seconds
 echo "machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs)"
 printf '%-28s %8s %12s\n' "tree" "crates" "build [s]"
 for side in ref work; do
-  if [ "$side" = ref ]; then dir="$work/ref"; label="reference $ref"; else dir="$PWD"; label="working tree $(git rev-parse --short HEAD)"; fi
+  if [ "$side" = ref ]; then
+    dir="$work/ref"; label="reference $ref"; target="$work/target-ref"
+  else
+    dir="$PWD"; label="working tree $(git rev-parse --short HEAD)"; target="${WORK_TARGET:-$work/target-work}"
+    rm -rf "$target"
+  fi
   n=$(count "$dir")
-  s=$(build "$dir" "$work/target-$side")
+  s=$(build "$dir" "$target")
   printf '%-28s %8s %12.0f\n' "$label" "$n" "$s"
 done
