@@ -114,7 +114,9 @@ fn spawn_monitor(
         while !done.load(Ordering::Relaxed) {
             for (i, t) in &mut monitors {
                 inbox.clear();
-                let _ = t.poll(&mut inbox);
+                if let Err(e) = t.poll(&mut inbox) {
+                    tracing::warn!(transport = t.name(), error = %e, "monitor poll failed");
+                }
                 let n = inbox
                     .iter()
                     .filter(|m| matches!(m, Message::Output(_)))

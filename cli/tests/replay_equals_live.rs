@@ -46,8 +46,9 @@ fn announces_silence(m: &Message) -> bool {
 }
 
 /// One live run: recorder (zenoh listener), twin node and stand (both connecting to it),
-/// 3 s of samples at 500 Hz. Returns the recorded bag and the twin's parameter file.
-fn live_run(dir: &TempDir, attempt: u32) -> (PathBuf, PathBuf) {
+/// 3 s of samples at 500 Hz. Returns the recorded bag, the twin's parameter file and the
+/// damper name.
+fn live_run(dir: &TempDir, attempt: u32) -> (PathBuf, PathBuf, String) {
     let port = free_port();
     let damper = format!("rl{}x{attempt}", std::process::id());
     let twin = dir.path(&format!("twin{attempt}.yaml"));
@@ -113,7 +114,7 @@ fn live_run(dir: &TempDir, attempt: u32) -> (PathBuf, PathBuf) {
     let (ok, _, err) = rec.wait(Duration::from_secs(20));
     assert!(ok, "recorder failed: {err}");
 
-    (live_bag, twin)
+    (live_bag, twin, damper)
 }
 
 /// Stamps of the samples in the bag and of the outputs the node published.
@@ -132,36 +133,70 @@ fn stamps(bag: &BTreeMap<Topic, Vec<(Message, Vec<u8>)>>) -> (Vec<f64>, Vec<f64>
     (of(Topic::Sample), of(Topic::Output))
 }
 
+/// The recorded samples the node stepped (those whose stamp an output carries), written
+/// as a bag of their own: exactly the node's input. `None` when an output has no recorded
+/// sample (the recorder lost one the node got), so the node's input cannot be rebuilt.
+fn node_input(
+    live: &BTreeMap<Topic, Vec<(Message, Vec<u8>)>>,
+    damper: &str,
+    out: &Path,
+) -> Option<usize> {
+    let (samples, outputs) = stamps(live);
+    let stepped: std::collections::BTreeSet<u64> =
+        outputs.iter().map(|t| (t * 1e9).round() as u64).collect();
+    let mut writer = bridge::bag::BagWriter::create(out, Default::default()).expect("create bag");
+    let mut n = 0;
+    for ((m, _), t) in live[&Topic::Sample].iter().zip(&samples) {
+        let ns = (t * 1e9).round() as u64;
+        if stepped.contains(&ns) {
+            writer.write_message(damper, m, ns).expect("write sample");
+            n += 1;
+        }
+    }
+    writer.finish().expect("finish bag");
+    (n == outputs.len()).then_some(n)
+}
+
 #[test]
 fn replaying_the_samples_of_a_live_run_publishes_the_same_bytes() {
     let dir = TempDir::new("replay_equals_live");
-    // The comparison needs the node and the recorder to have seen the same samples.
-    // Samples travel best effort (sensor-data QoS), so on a loaded machine one can be
-    // lost on either path; such a run proves nothing either way and is repeated (at most
-    // three runs). A lost sample is recognised by its stamp, not by the bytes compared.
+    // The replay gets exactly the samples the node stepped. Samples travel best effort
+    // (sensor-data QoS) and the node may miss one the recorder got (typically the very
+    // first, before zenoh's routes settle); those are left out of the replay's input,
+    // recognised by their stamps. If the recorder missed a sample the node got, the
+    // node's input cannot be rebuilt and the run is repeated (at most three runs).
     let mut runs = Vec::new();
-    let (live_bag, twin, live) = loop {
+    let (live, input, twin) = loop {
         let attempt = runs.len() as u32;
-        let (bag, twin) = live_run(&dir, attempt);
+        let (bag, twin, damper) = live_run(&dir, attempt);
         let live = by_topic(&bag);
+        let input = dir.path(&format!("input{attempt}"));
         let (samples, outputs) = stamps(&live);
-        if !samples.is_empty() && samples == outputs {
-            break (bag, twin, live);
+        match node_input(&live, &damper, &input) {
+            Some(n) if n > 0 => {
+                if n < samples.len() {
+                    eprintln!(
+                        "run {attempt}: the node stepped {n} of the {} samples recorded",
+                        samples.len()
+                    );
+                }
+                break (live, input, twin);
+            }
+            _ => runs.push(format!(
+                "run {attempt}: {} samples recorded, {} outputs published",
+                samples.len(),
+                outputs.len()
+            )),
         }
-        runs.push(format!(
-            "run {attempt}: {} samples recorded, {} outputs published",
-            samples.len(),
-            outputs.len()
-        ));
         assert!(
             runs.len() < 3,
-            "samples lost in every run:\n{}",
+            "node input not recoverable in any run:\n{}",
             runs.join("\n")
         );
     };
     let replay_bag = dir.path("replay");
     let o = mrtwin()
-        .args(["replay", live_bag.to_str().unwrap(), "--params"])
+        .args(["replay", input.to_str().unwrap(), "--params"])
         .arg(&twin)
         .arg("--out")
         .arg(&replay_bag)
@@ -171,9 +206,13 @@ fn replaying_the_samples_of_a_live_run_publishes_the_same_bytes() {
 
     let replay = by_topic(&replay_bag);
     let samples = live.get(&Topic::Sample).map_or(0, Vec::len);
-    // 3 s at 500 Hz.
+    // 3 s at 500 Hz, nearly all of them stepped by the node.
     assert!(samples >= 1400, "only {samples} samples recorded");
-    assert_eq!(replay[&Topic::Sample].len(), samples);
+    let stepped = replay[&Topic::Sample].len();
+    assert!(
+        stepped + 10 >= samples,
+        "the node stepped only {stepped} of {samples} samples"
+    );
     for topic in [Topic::Output, Topic::PredictedForce, Topic::YieldEstimate] {
         let (l, r) = (&live[&topic], &replay[&topic]);
         assert!(!l.is_empty(), "{topic:?}: nothing published live");
@@ -193,7 +232,11 @@ fn replaying_the_samples_of_a_live_run_publishes_the_same_bytes() {
             );
         }
     }
-    assert_eq!(live[&Topic::Output].len(), samples, "one output per sample");
+    assert_eq!(
+        live[&Topic::Output].len(),
+        stepped,
+        "one output per stepped sample"
+    );
     let live_diag: Vec<&(Message, Vec<u8>)> = live[&Topic::Diagnostics]
         .iter()
         .filter(|(m, _)| !announces_silence(m))
