@@ -37,6 +37,26 @@ pub struct NodeArgs {
     pub ros_args: Vec<String>,
 }
 
+/// The node's parameter files, re-read when their contents change (the `-p` overrides
+/// applied again): a running twin takes an upgraded file without a restart.
+fn params_file_watch(ros: launch_config::RosArgs) -> node::runner::ParamsSource {
+    let read = |ros: &launch_config::RosArgs| -> Vec<Option<Vec<u8>>> {
+        ros.params_files
+            .iter()
+            .map(|f| std::fs::read(f).ok())
+            .collect()
+    };
+    let mut seen = read(&ros);
+    Box::new(move || {
+        let now = read(&ros);
+        if now == seen {
+            return None;
+        }
+        seen = now;
+        Some(load_node_params::<TwinNodeParams>(&ros, TWIN_NODE).map_err(|e| e.to_string()))
+    })
+}
+
 fn duration(d: Option<f64>) -> Result<Option<Duration>> {
     match d {
         None => Ok(None),
@@ -53,6 +73,9 @@ pub fn run_twin(args: &NodeArgs) -> Result<()> {
     let stop = stop_flag()?;
     let mut node =
         TwinNode::new(params, &name).with_context(|| format!("start twin node {name}"))?;
+    if !ros.params_files.is_empty() {
+        node.watch_params(params_file_watch(ros.clone()));
+    }
     tracing::info!(node = %name, "running (Ctrl-C stops)");
     let deadline = duration(args.duration)?.map(|d| Instant::now() + d);
     let verbose = args.verbose;

@@ -10,7 +10,7 @@
 //! live run can see.
 
 use bridge::transport::Message;
-use estimation::health::Level;
+use estimation::health::{Check, Level};
 use msgs::{DiagnosticArray, Float64, Header, TwinOutput};
 
 use crate::conditioning::{SensorSample, StreamCounters};
@@ -97,9 +97,56 @@ struct IdleSchedule {
     last_announced: Option<f64>,
 }
 
+/// Which model and parameters the core runs, for `/diagnostics` (`twin model`).
+#[derive(Debug, Clone, PartialEq)]
+struct ModelState {
+    /// `fnv1a64` of the resolved parameters, 16 hex digits.
+    params_version: String,
+    /// Effects as configured (`""`: the model's own).
+    effects: String,
+    /// Parameter sets taken in flight.
+    reloads: u64,
+    /// Why the last offered parameters were refused, if they were.
+    refused: Option<String>,
+    /// A reload was taken or refused since the last `/diagnostics`: say so at once.
+    announce: bool,
+}
+
+/// The version of a parameter set: `fnv1a64` of its resolved values, 16 hex digits (the
+/// same for a live node and a replay given the same parameters, whatever the file layout).
+pub fn params_version(params: &TwinNodeParams) -> String {
+    let text = format!("{params:?}");
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for b in text.bytes() {
+        h ^= u64::from(b);
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    format!("{h:016x}")
+}
+
+/// What [`TwinCore::reload`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Reloaded {
+    /// The yield-stress estimator kept its state (same settings and scale).
+    pub estimator_kept: bool,
+}
+
+/// Why offered parameters were not taken in flight.
+#[derive(Debug, thiserror::Error)]
+pub enum ReloadError {
+    /// They do not make a valid twin.
+    #[error(transparent)]
+    Invalid(#[from] CoreError),
+    /// They change what only a restart can (the damper name, transports, periods).
+    #[error("'{0}' changed: it takes a restart, not a reload")]
+    NeedsRestart(&'static str),
+}
+
 /// The twin core. See the module documentation.
 pub struct TwinCore {
     cfg: CoreConfig,
+    params: TwinNodeParams,
+    model_state: ModelState,
     pipeline: TwinPipeline,
     schedule: SampleSchedule,
     idle: IdleSchedule,
@@ -112,16 +159,16 @@ impl TwinCore {
     pub fn new(params: &TwinNodeParams, node_name: &str) -> Result<Self, CoreError> {
         params.validate()?;
         let pipeline = TwinPipeline::new(params.pipeline_config()?)?;
-        Ok(Self::with_pipeline(
-            CoreConfig::of(params, node_name),
-            pipeline,
-        ))
-    }
-
-    /// The core around an existing pipeline.
-    pub fn with_pipeline(cfg: CoreConfig, pipeline: TwinPipeline) -> Self {
-        Self {
-            cfg,
+        Ok(Self {
+            cfg: CoreConfig::of(params, node_name),
+            model_state: ModelState {
+                params_version: params_version(params),
+                effects: params.effects.to_string(),
+                reloads: 0,
+                refused: None,
+                announce: false,
+            },
+            params: params.clone(),
             schedule: SampleSchedule {
                 next_yield_s: None,
                 next_diag_s: None,
@@ -134,6 +181,99 @@ impl TwinCore {
             idle: IdleSchedule::default(),
             transport_errors: 0,
             transport_errors_reported: 0,
+        })
+    }
+
+    /// Take new parameters in flight (a parameter-file reload): the model, its parameters
+    /// and effects switch at the next sample, the stream and health carry on, and the
+    /// estimator keeps its state unless its settings or scale changed. Parameters that
+    /// only a restart can change, or that do not make a valid twin, are refused: the core
+    /// runs on as it was and `/diagnostics` (`twin model`) says why.
+    pub fn reload(&mut self, params: &TwinNodeParams) -> Result<Reloaded, ReloadError> {
+        let result = self.try_reload(params);
+        self.model_state.refused = result.as_ref().err().map(|e| e.to_string());
+        self.model_state.announce = true;
+        result
+    }
+
+    /// Note offered parameters that could not even be read (file, key and line in
+    /// `reason`): shown on `/diagnostics` until parameters are taken.
+    pub fn refuse_reload(&mut self, reason: String) {
+        self.model_state.refused = Some(reason);
+        self.model_state.announce = true;
+    }
+
+    fn try_reload(&mut self, params: &TwinNodeParams) -> Result<Reloaded, ReloadError> {
+        let old = &self.params;
+        let restart = [
+            ("damper", params.damper != old.damper),
+            ("transports", params.transports != old.transports),
+            ("input", params.input != old.input),
+            ("zenoh", params.zenoh != old.zenoh),
+            ("ros2", params.ros2 != old.ros2),
+            ("iceoryx2", params.iceoryx2 != old.iceoryx2),
+            (
+                "control_service",
+                params.control_service != old.control_service,
+            ),
+        ];
+        if let Some((key, _)) = restart.iter().find(|(_, changed)| *changed) {
+            return Err(ReloadError::NeedsRestart(key));
+        }
+        params.validate().map_err(CoreError::from)?;
+        let cfg = params.pipeline_config().map_err(CoreError::from)?;
+        let estimator_kept = self.pipeline.replace_model(cfg).map_err(CoreError::from)?;
+        let node_name = std::mem::take(&mut self.cfg.node_name);
+        self.cfg = CoreConfig::of(params, &node_name);
+        self.params = params.clone();
+        self.model_state.params_version = params_version(params);
+        self.model_state.effects = params.effects.to_string();
+        self.model_state.reloads += 1;
+        Ok(Reloaded { estimator_kept })
+    }
+
+    /// The `twin model` check's level alone: WARN while offered parameters are refused.
+    fn model_level(&self) -> Level {
+        if self.model_state.refused.is_some() {
+            Level::Warn
+        } else {
+            Level::Ok
+        }
+    }
+
+    /// The `twin model` check: model, effects, parameter version, reloads.
+    fn model_check(&self) -> Check {
+        let m = &self.model_state;
+        let model = self.pipeline.model_id();
+        let effects = if m.effects.is_empty() {
+            "model default"
+        } else {
+            &m.effects
+        };
+        let (level, message) = match &m.refused {
+            None => (
+                Level::Ok,
+                format!("{model} ({effects}), parameters {}", m.params_version),
+            ),
+            Some(why) => (
+                Level::Warn,
+                format!(
+                    "{model}, parameters {}; new parameters refused: {why}",
+                    m.params_version
+                ),
+            ),
+        };
+        Check {
+            name: "twin model".into(),
+            level,
+            message,
+            values: vec![
+                ("model".into(), model.to_string()),
+                ("effects".into(), m.effects.clone()),
+                ("params_version".into(), m.params_version.clone()),
+                ("reloads".into(), m.reloads.to_string()),
+                ("refused".into(), m.refused.clone().unwrap_or_default()),
+            ],
         }
     }
 
@@ -211,15 +351,21 @@ impl TwinCore {
             rate_hz: rate(counters.received - s.previous.received, t - s.last_diag_s),
             transport_errors: self.transport_errors - self.transport_errors_reported,
         };
-        let level = worst([stream.level(), self.pipeline.health_level()]);
+        let level = worst([
+            stream.level(),
+            self.pipeline.health_level(),
+            self.model_level(),
+        ]);
         let periodic = s.next_diag_s.is_none_or(|next| t >= next);
         let resumed = s
             .last_sample_s
             .is_some_and(|last| t - last > self.cfg.stale_after_s);
-        let changed = level != s.level && t - s.last_diag_s >= LEVEL_CHANGE_MIN_INTERVAL_S;
+        let changed = (level != s.level || self.model_state.announce)
+            && t - s.last_diag_s >= LEVEL_CHANGE_MIN_INTERVAL_S;
         if !(periodic || resumed || changed) {
             return None;
         }
+        self.model_state.announce = false;
         let msg = self.diagnostics(t, stream);
         self.schedule.level = level;
         if periodic || resumed {
@@ -267,6 +413,7 @@ impl TwinCore {
     fn diagnostics(&self, stamp_s: f64, stream: StreamState) -> DiagnosticArray {
         let mut checks = vec![stream.check()];
         checks.extend(self.pipeline.checks());
+        checks.push(self.model_check());
         diagnostic_array(&self.cfg.node_name, &self.cfg.damper, stamp_s, &checks)
     }
 
@@ -279,7 +426,11 @@ impl TwinCore {
         if stale {
             Level::Stale
         } else {
-            worst([self.schedule.level, self.pipeline.health_level()])
+            worst([
+                self.schedule.level,
+                self.pipeline.health_level(),
+                self.model_level(),
+            ])
         }
     }
 
@@ -343,6 +494,7 @@ pub fn yield_msg(p: &TwinPipeline, step: &TwinStep, damper: &str) -> msgs::Yield
 mod tests {
     use super::*;
     use bridge::transport::Topic;
+    use twin::EffectSet;
 
     fn samples(n: usize, rate_hz: f64) -> Vec<SensorSample> {
         (0..n)
@@ -438,6 +590,100 @@ mod tests {
             .diagnostics
             .expect("diagnostics when the stream resumes");
         assert_ne!(d.status[0].level, msgs::DiagnosticStatus::STALE);
+    }
+
+    #[test]
+    fn a_reload_switches_the_effects_in_flight_and_a_bad_one_is_refused() {
+        let p = TwinNodeParams {
+            effects: twin::EffectsChoice::List(EffectSet::NONE),
+            ..Default::default()
+        };
+        let mut core = TwinCore::new(&p, "/twin").unwrap();
+        // The damper's record: the estimator has τ0 after the first strokes.
+        let prog = twin::stand::Programme::grid(0.01, &[2.0], &[1.0], 4.0, 1000.0);
+        let mut truth =
+            twin::models::build(p.model, &p.model_params(), p.model.effects(p.effects)).unwrap();
+        let input: Vec<SensorSample> = twin::stand::run(truth.as_mut(), &prog, None)
+            .iter()
+            .map(|s| SensorSample {
+                time_s: s.time_s,
+                displacement_m: s.input.displacement_m,
+                velocity_m_s: s.input.velocity_m_s,
+                force_n: s.measured_force_n,
+                current_a: s.input.current_a,
+                temperature_c: f64::NAN,
+            })
+            .collect();
+        assert_eq!(input.len(), 4000);
+        let model_of = |o: &Outputs| o.output.as_ref().map(|m| m.model_id.clone());
+        let status = |d: &DiagnosticArray, key: &str| -> String {
+            let s = d
+                .status
+                .iter()
+                .find(|s| s.name == "/twin: twin model")
+                .unwrap();
+            s.values
+                .iter()
+                .find(|kv| kv.key == key)
+                .unwrap()
+                .value
+                .clone()
+        };
+        let first = core.on_sample(&input[0], 0.0);
+        assert_eq!(model_of(&first).as_deref(), Some("two-chamber"));
+        assert_eq!(
+            status(first.diagnostics.as_ref().unwrap(), "effects"),
+            "none"
+        );
+        let v0 = status(first.diagnostics.as_ref().unwrap(), "params_version");
+        for s in &input[1..3000] {
+            core.on_sample(s, s.time_s);
+        }
+        let tau_before = core.pipeline().curve();
+        assert!(!tau_before.is_empty(), "an estimate before the reload");
+        // Same geometry, the paper's effects switched on: the estimator keeps its state.
+        let upgraded = TwinNodeParams {
+            effects: twin::EffectsChoice::Paper,
+            ..p.clone()
+        };
+        let r = core.reload(&upgraded).unwrap();
+        assert!(r.estimator_kept);
+        assert_eq!(core.pipeline().curve(), tau_before);
+        let mut diag = None;
+        for s in &input[3000..] {
+            let out = core.on_sample(s, s.time_s);
+            assert_eq!(model_of(&out).as_deref(), Some("two-chamber"));
+            diag = out.diagnostics.or(diag);
+        }
+        let d = diag.expect("diagnostics after the reload");
+        assert_eq!(status(&d, "reloads"), "1");
+        assert_eq!(status(&d, "effects"), "paper");
+        assert_ne!(status(&d, "params_version"), v0);
+        assert_eq!(status(&d, "params_version"), params_version(&upgraded));
+        // What only a restart can change is refused, and the twin runs on.
+        let moved = TwinNodeParams {
+            damper: "other".into(),
+            ..upgraded.clone()
+        };
+        let e = core.reload(&moved).unwrap_err();
+        assert!(e.to_string().contains("'damper'"), "{e}");
+        let t = input[3999].time_s + 0.001;
+        let out = core.on_sample(
+            &SensorSample {
+                time_s: t,
+                ..input[3999]
+            },
+            2.0,
+        );
+        assert_eq!(model_of(&out).as_deref(), Some("two-chamber"));
+        let d = out.diagnostics.expect("the refusal is reported at once");
+        let st = d
+            .status
+            .iter()
+            .find(|s| s.name == "/twin: twin model")
+            .unwrap();
+        assert_eq!(st.level, msgs::DiagnosticStatus::WARN);
+        assert!(st.message.contains("restart"), "{}", st.message);
     }
 
     #[test]

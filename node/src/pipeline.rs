@@ -86,6 +86,15 @@ pub struct TwinPipeline {
     level: Level,
 }
 
+/// The rod area \[m²\] when the model has a gas spring (its preload is read from the
+/// estimator's force offset).
+fn rod_area(cfg: &PipelineConfig) -> Option<f64> {
+    (cfg.model == ModelKind::TwoChamber && cfg.effects.has(Effect::GasSpring)).then(|| {
+        let d = cfg.params.two_chamber.rod_diameter_m;
+        std::f64::consts::PI * d * d / 4.0
+    })
+}
+
 impl TwinPipeline {
     /// Build the model and the estimator.
     pub fn new(cfg: PipelineConfig) -> Result<Self, UnsupportedEffects> {
@@ -93,11 +102,7 @@ impl TwinPipeline {
         let estimator = cfg.estimator.clone().and_then(|ec| {
             force_per_pa(cfg.model, &cfg.params).map(|a| YieldEstimator::new(ec, a))
         });
-        let rod_area_m2 =
-            (cfg.model == ModelKind::TwoChamber && cfg.effects.has(Effect::GasSpring)).then(|| {
-                let d = cfg.params.two_chamber.rod_diameter_m;
-                std::f64::consts::PI * d * d / 4.0
-            });
+        let rod_area_m2 = rod_area(&cfg);
         Ok(Self {
             health: HealthMonitor::new(cfg.health.clone()),
             conditioner: Conditioner::new(cfg.conditioning.clone()),
@@ -113,6 +118,33 @@ impl TwinPipeline {
     /// The configuration.
     pub fn config(&self) -> &PipelineConfig {
         &self.cfg
+    }
+
+    /// Switch to the model of `cfg` in flight: the new model is seated at the last input
+    /// (as after a gap), the stream conditioning and the health windows carry on, and the
+    /// yield-stress estimator keeps its state when its settings and its force-per-pascal
+    /// scale are unchanged (otherwise it starts afresh). Returns whether it was kept.
+    /// Conditioning and health settings stay those the pipeline started with.
+    pub fn replace_model(&mut self, cfg: PipelineConfig) -> Result<bool, UnsupportedEffects> {
+        let mut model = build(cfg.model, &cfg.params, cfg.effects)?;
+        if let Some(input) = &self.last_input {
+            model.reset(input);
+        }
+        let scale = |c: &PipelineConfig| force_per_pa(c.model, &c.params);
+        let keep = cfg.estimator == self.cfg.estimator && scale(&cfg) == scale(&self.cfg);
+        if !keep {
+            self.estimator = cfg.estimator.clone().and_then(|ec| {
+                force_per_pa(cfg.model, &cfg.params).map(|a| YieldEstimator::new(ec, a))
+            });
+        }
+        self.rod_area_m2 = rod_area(&cfg);
+        self.model = model;
+        self.cfg = PipelineConfig {
+            conditioning: self.cfg.conditioning.clone(),
+            health: self.cfg.health.clone(),
+            ..cfg
+        };
+        Ok(keep)
     }
 
     /// Model id.

@@ -86,9 +86,17 @@ impl StopWhen<'_> {
     }
 }
 
+/// New parameters offered to a running node: `None` when nothing changed, `Err` with the
+/// reason (file, key, line) when they could not be read. Polled twice a second.
+pub type ParamsSource = Box<dyn FnMut() -> Option<Result<TwinNodeParams, String>> + Send>;
+
+/// How often a running node asks its [`ParamsSource`] \[s\].
+pub const PARAMS_POLL_S: f64 = 0.5;
+
 /// The twin node.
 pub struct TwinNode {
     core: TwinCore,
+    params_source: Option<ParamsSource>,
     transports: Vec<(TransportKind, Box<dyn Transport>)>,
     input: usize,
     #[cfg(feature = "iceoryx2")]
@@ -137,11 +145,41 @@ impl TwinNode {
             };
         Ok(Self {
             core,
+            params_source: None,
             transports,
             input,
             #[cfg(feature = "iceoryx2")]
             control,
         })
+    }
+
+    /// Take new parameters in flight from `source` (e.g. the parameter file, re-read when
+    /// it changes): see [`TwinCore::reload`].
+    pub fn watch_params(&mut self, source: ParamsSource) {
+        self.params_source = Some(source);
+    }
+
+    /// Ask the parameter source; take what it offers, or say why not.
+    fn poll_params(&mut self) {
+        let Some(offer) = self.params_source.as_mut().and_then(|f| f()) else {
+            return;
+        };
+        match offer.map_err(|e| e.to_string()) {
+            Ok(params) => match self.core.reload(&params) {
+                Ok(r) => tracing::info!(
+                    model = self.core.pipeline().model_id(),
+                    effects = %params.effects,
+                    params_version = %crate::core::params_version(&params),
+                    estimator_kept = r.estimator_kept,
+                    "parameters reloaded"
+                ),
+                Err(e) => tracing::warn!(error = %e, "new parameters refused"),
+            },
+            Err(e) => {
+                tracing::warn!(error = %e, "new parameters refused");
+                self.core.refuse_reload(e);
+            }
+        }
     }
 
     /// The core (estimates, counters, checks).
@@ -161,6 +199,7 @@ impl TwinNode {
         let mut window = LiveWindow::new(self.core.pipeline().counters());
         let mut outbox = Vec::new();
         let mut last_activity = start;
+        let mut next_params_poll = PARAMS_POLL_S;
         loop {
             let now = Instant::now();
             if stop.reached(now) {
@@ -172,6 +211,10 @@ impl TwinNode {
                 outbox.push(Message::Diagnostics(d));
             }
             self.publish(&mut outbox);
+            if clock(now) >= next_params_poll {
+                next_params_poll = clock(now) + PARAMS_POLL_S;
+                self.poll_params();
+            }
             if clock(now) >= window.next_report_s {
                 on_second(&window.report(&self.core, clock(now)));
             }
