@@ -207,7 +207,7 @@ impl StandNode {
         stop: Option<&AtomicBool>,
         duration: Option<Duration>,
     ) -> Result<StandSummary, NodeError> {
-        let p = &self.params;
+        let p = self.params.clone();
         let mut model = build(p.model, &p.model_params(), p.model.effects(p.effects))?;
         let programme = p.programme();
         let cycle = programme.sample_count().max(1);
@@ -227,18 +227,7 @@ impl StandNode {
             {
                 break;
             }
-            let now = Instant::now();
-            if due > now {
-                let wait = due - now;
-                if wait > Duration::from_micros(300) {
-                    std::thread::sleep(wait - Duration::from_micros(200));
-                }
-                while Instant::now() < due {
-                    std::hint::spin_loop();
-                }
-            } else {
-                summary.max_lateness_s = summary.max_lateness_s.max((now - due).as_secs_f64());
-            }
+            pace(due, &mut summary);
             let (_, _, input) = programme.input_at(k as usize % cycle);
             let out = if k == 0 {
                 model.reset(&input);
@@ -254,7 +243,7 @@ impl StandNode {
             {
                 continue;
             }
-            let mut sample = SensorSample {
+            let sample = SensorSample {
                 time_s: epoch0 + t_rel,
                 displacement_m: input.displacement_m,
                 velocity_m_s: input.velocity_m_s,
@@ -271,39 +260,129 @@ impl StandNode {
                     f64::NAN
                 },
             };
-            if rng.random::<f64>() < f.drop_probability {
-                continue;
-            }
-            if rng.random::<f64>() < f.nan_probability {
-                sample.force_n = f64::NAN;
-            }
-            let mut batch = Vec::with_capacity(3);
-            if let Some(h) = held.take() {
-                batch.push(sample);
-                batch.push(h);
-            } else if rng.random::<f64>() < f.swap_probability {
-                held = Some(sample);
-            } else {
-                batch.push(sample);
-            }
-            if rng.random::<f64>() < f.duplicate_probability {
-                if let Some(&last) = batch.last() {
-                    batch.push(last);
-                }
-            }
-            for s in batch {
-                let msg = Message::Sample(s.to_msg(&p.damper));
-                for t in &mut self.transports {
-                    match t.publish(&msg) {
-                        Ok(()) => summary.published += 1,
-                        Err(e) => {
-                            tracing::warn!(transport = t.name(), error = %e, "publish failed");
-                            summary.errors += 1;
-                        }
+            let batch = f.apply(sample, &mut rng, &mut held);
+            self.publish(&batch, &mut summary);
+        }
+        Ok(summary)
+    }
+
+    /// Publish `batch` on every transport; a failure is logged and counted.
+    fn publish(&mut self, batch: &[SensorSample], summary: &mut StandSummary) {
+        for s in batch {
+            let msg = Message::Sample(s.to_msg(&self.params.damper));
+            for t in &mut self.transports {
+                match t.publish(&msg) {
+                    Ok(()) => summary.published += 1,
+                    Err(e) => {
+                        tracing::warn!(transport = t.name(), error = %e, "publish failed");
+                        summary.errors += 1;
                     }
                 }
             }
         }
-        Ok(summary)
+    }
+}
+
+/// Sleep, then spin for the last 200 µs, until `due`; a sample already late is counted
+/// in the summary's lateness.
+fn pace(due: Instant, summary: &mut StandSummary) {
+    let now = Instant::now();
+    if due > now {
+        let wait = due - now;
+        if wait > Duration::from_micros(300) {
+            std::thread::sleep(wait - Duration::from_micros(200));
+        }
+        while Instant::now() < due {
+            std::hint::spin_loop();
+        }
+    } else {
+        summary.max_lateness_s = summary.max_lateness_s.max((now - due).as_secs_f64());
+    }
+}
+
+impl Faults {
+    /// The stream faults applied to one sample, with the random draws always in the same
+    /// order (drop, NaN, swap with the next, duplicate) so a seed replays the same faults:
+    /// the samples to publish now (none, one, or two or three after a swap or duplicate).
+    fn apply(
+        &self,
+        mut sample: SensorSample,
+        rng: &mut impl Rng,
+        held: &mut Option<SensorSample>,
+    ) -> Vec<SensorSample> {
+        let mut batch = Vec::with_capacity(3);
+        if rng.random::<f64>() < self.drop_probability {
+            return batch;
+        }
+        if rng.random::<f64>() < self.nan_probability {
+            sample.force_n = f64::NAN;
+        }
+        if let Some(h) = held.take() {
+            batch.push(sample);
+            batch.push(h);
+        } else if rng.random::<f64>() < self.swap_probability {
+            *held = Some(sample);
+        } else {
+            batch.push(sample);
+        }
+        if rng.random::<f64>() < self.duplicate_probability {
+            if let Some(&last) = batch.last() {
+                batch.push(last);
+            }
+        }
+        batch
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn stream(f: &Faults, seed: u64, n: usize) -> Vec<f64> {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        let mut held = None;
+        (0..n)
+            .flat_map(|k| {
+                let s = SensorSample {
+                    time_s: k as f64,
+                    force_n: 1.0,
+                    ..Default::default()
+                };
+                f.apply(s, &mut rng, &mut held)
+            })
+            .map(|s| {
+                if s.force_n.is_nan() {
+                    -s.time_s
+                } else {
+                    s.time_s
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn faults_follow_their_probabilities_and_a_seed_replays_them() {
+        let none = stream(&Faults::default(), 1, 1000);
+        assert_eq!(none, (0..1000).map(|k| k as f64).collect::<Vec<_>>());
+        let f = Faults {
+            drop_probability: 0.1,
+            duplicate_probability: 0.1,
+            swap_probability: 0.1,
+            nan_probability: 0.1,
+            ..Default::default()
+        };
+        let a = stream(&f, 7, 20_000);
+        assert_eq!(a, stream(&f, 7, 20_000), "same seed, same faults");
+        assert_ne!(a, stream(&f, 8, 20_000));
+        let nan = a.iter().filter(|t| **t < 0.0).count() as f64 / a.len() as f64;
+        assert!((nan - 0.1).abs() < 0.02, "NaN share {nan}");
+        let back = a.windows(2).filter(|w| w[1].abs() < w[0].abs()).count();
+        assert!(back > 1000, "{back} out-of-order steps");
+        let dups = a.windows(2).filter(|w| w[1] == w[0]).count();
+        assert!(dups > 1000, "{dups} duplicates");
+        // Each sample dropped with probability 0.1 (a swapped one may come back later).
+        let distinct: std::collections::BTreeSet<u64> = a.iter().map(|t| t.abs() as u64).collect();
+        let dropped = 1.0 - distinct.len() as f64 / 20_000.0;
+        assert!((dropped - 0.1).abs() < 0.02, "dropped {dropped}");
     }
 }
