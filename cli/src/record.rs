@@ -13,7 +13,7 @@ use bridge::transport::Topic;
 use clap::Args;
 use launch_config::{load_node_params, parse_ros_args};
 use node::config::TwinNodeParams;
-use node::transports::{open, TransportKind, TransportSettings};
+use node::transports::{open, TransportKind};
 
 /// Default node name of the recorder.
 pub const RECORD_NODE: &str = "mrtwin_record";
@@ -68,13 +68,7 @@ pub fn run(args: &RecordArgs) -> Result<()> {
     if !(args.flush_period.is_finite() && args.flush_period > 0.0) {
         bail!("--flush-period must be positive, got {}", args.flush_period);
     }
-    let settings = TransportSettings::new(
-        &params.damper,
-        &name,
-        &params.ros2,
-        &params.zenoh,
-        &params.iceoryx2,
-    );
+    let settings = params.transport_settings(&name);
     let mut transport = open(args.transport, &settings, &[], &topics)?;
     let mut writer = BagWriter::create(
         &args.out,

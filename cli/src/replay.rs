@@ -21,7 +21,7 @@ use node::config::{TwinNodeParams, TWIN_NODE};
 use node::core::TwinCore;
 use node::diagnostics::level_byte;
 use node::pipeline::{Processed, TwinPipeline};
-use node::transports::{open, TransportSettings};
+use node::transports::open;
 
 /// Arguments of `mrtwin replay`.
 #[derive(Debug, Args)]
@@ -210,13 +210,7 @@ struct Publisher {
 
 impl Publisher {
     fn open(params: &TwinNodeParams, node_name: &str) -> Result<Self> {
-        let settings = TransportSettings::new(
-            &params.damper,
-            node_name,
-            &params.ros2,
-            &params.zenoh,
-            &params.iceoryx2,
-        );
+        let settings = params.transport_settings(node_name);
         let topics = [
             Topic::Output,
             Topic::PredictedForce,

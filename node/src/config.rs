@@ -137,6 +137,18 @@ pub struct InvalidParam {
 }
 
 impl TwinNodeParams {
+    /// The transport settings of node `node_fqn` (the twin, or a tool speaking for it:
+    /// replay, record) with these parameters.
+    pub fn transport_settings(&self, node_fqn: &str) -> crate::transports::TransportSettings {
+        crate::transports::TransportSettings::new(
+            &self.damper,
+            node_fqn,
+            &self.ros2,
+            &self.zenoh,
+            &self.iceoryx2,
+        )
+    }
+
     /// The model parameters of the four sections.
     pub fn model_params(&self) -> ModelParams {
         ModelParams {

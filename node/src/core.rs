@@ -282,6 +282,11 @@ impl TwinCore {
         &self.pipeline
     }
 
+    /// The version of the parameters it runs ([`params_version`]).
+    pub fn params_version(&self) -> &str {
+        &self.model_state.params_version
+    }
+
     /// The settings.
     pub fn config(&self) -> &CoreConfig {
         &self.cfg

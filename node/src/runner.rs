@@ -18,7 +18,7 @@ use crate::conditioning::{SensorSample, StreamCounters};
 use crate::config::{InvalidParam, TwinNodeParams};
 use crate::core::{CoreError, TwinCore};
 use crate::pipeline::{Processed, TwinPipeline, TwinStep};
-use crate::transports::{open, TransportKind, TransportSettings};
+use crate::transports::{open, TransportKind};
 
 /// Why a node could not start.
 #[derive(Debug, thiserror::Error)]
@@ -97,6 +97,8 @@ pub const PARAMS_POLL_S: f64 = 0.5;
 pub struct TwinNode {
     core: TwinCore,
     params_source: Option<ParamsSource>,
+    /// What the input transport delivered this loop turn (kept to reuse its buffer).
+    inbox: Vec<Message>,
     transports: Vec<(TransportKind, Box<dyn Transport>)>,
     input: usize,
     #[cfg(feature = "iceoryx2")]
@@ -116,13 +118,7 @@ impl TwinNode {
     /// (`/ns/name`); the namespace is its parent.
     pub fn new(params: TwinNodeParams, node_name: &str) -> Result<Self, NodeError> {
         let core = TwinCore::new(&params, node_name)?;
-        let settings = TransportSettings::new(
-            &params.damper,
-            node_name,
-            &params.ros2,
-            &params.zenoh,
-            &params.iceoryx2,
-        );
+        let settings = params.transport_settings(node_name);
         let mut transports = Vec::new();
         let mut input = 0;
         for &kind in &params.transports {
@@ -146,6 +142,7 @@ impl TwinNode {
         Ok(Self {
             core,
             params_source: None,
+            inbox: Vec::new(),
             transports,
             input,
             #[cfg(feature = "iceoryx2")]
@@ -169,7 +166,7 @@ impl TwinNode {
                 Ok(r) => tracing::info!(
                     model = self.core.pipeline().model_id(),
                     effects = %params.effects,
-                    params_version = %crate::core::params_version(&params),
+                    params_version = self.core.params_version(),
                     estimator_kept = r.estimator_kept,
                     "parameters reloaded"
                 ),
@@ -236,14 +233,13 @@ impl TwinNode {
         window: &mut LiveWindow,
         outbox: &mut Vec<Message>,
     ) -> bool {
-        let mut inbox = Vec::new();
         let (kind, input) = &mut self.transports[self.input];
-        if let Err(e) = input.poll(&mut inbox) {
+        if let Err(e) = input.poll(&mut self.inbox) {
             tracing::warn!(transport = %kind, error = %e, "poll for samples failed");
             self.core.count_transport_error();
         }
         let mut busy = false;
-        for m in inbox {
+        for m in self.inbox.drain(..) {
             if let Message::Sample(s) = m {
                 busy = true;
                 let out = self.core.on_sample(&SensorSample::from_msg(&s), now);
