@@ -90,6 +90,10 @@ pub struct Prepared {
     pub h: Vec<f64>,
     /// Current knots (the distinct current levels, or a grid when there are many).
     pub knots: Vec<f64>,
+    /// The rig's anti-alias filter every model force passes through before it is compared
+    /// with the measurement (fitted with the baseline; `None` until then, or when no
+    /// filter fits better).
+    pub anti_alias: Option<crate::antialias::AntiAlias>,
     /// `true` when the knots are the record's own held levels (at most 12 distinct
     /// currents), `false` when the current varies continuously and the knots are a grid.
     pub held_levels: bool,
@@ -246,6 +250,39 @@ fn current_knots(i: &[f64]) -> Vec<f64> {
         }
         (0..8).map(|j| lo + (hi - lo) * j as f64 / 7.0).collect()
     }
+}
+
+/// Drop the current knots the fitting blocks barely reach, weakest first, until every
+/// knot left carries at least 2 % of the fitting samples (and 50) in interpolation weight.
+/// A level seen only in held-out blocks (random current levels) would otherwise have free
+/// parameters nothing constrains; its samples are interpolated between the neighbouring
+/// knots instead.
+fn knots_the_fit_can_see(mut knots: Vec<f64>, i: &[f64], train: &[bool]) -> Vec<f64> {
+    let m = train.iter().filter(|t| **t).count();
+    let min_support = (0.02 * m as f64).max(50.0);
+    while knots.len() > 1 {
+        let mut support = vec![0.0; knots.len()];
+        for (&c, _) in i.iter().zip(train).filter(|(_, t)| **t) {
+            let nk = knots.len();
+            let k = knots
+                .partition_point(|&x| x <= c)
+                .saturating_sub(1)
+                .min(nk - 2);
+            let lam = ((c - knots[k]) / (knots[k + 1] - knots[k])).clamp(0.0, 1.0);
+            support[k] += 1.0 - lam;
+            support[k + 1] += lam;
+        }
+        let (weakest, s) =
+            support.iter().enumerate().fold(
+                (0, f64::INFINITY),
+                |b, (k, s)| if *s < b.1 { (k, *s) } else { b },
+            );
+        if s >= min_support {
+            break;
+        }
+        knots.remove(weakest);
+    }
+    knots
 }
 
 /// Two currents closer than this are one level: 2 % of the largest |I|, at least 1 mA.
@@ -457,6 +494,7 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
     }
     let holdout: Vec<bool> = (0..n).map(|j| block[j] % 2 == 1 && !excluded[j]).collect();
     let train: Vec<bool> = (0..n).map(|j| block[j] % 2 == 0 && !excluded[j]).collect();
+    let knots = knots_the_fit_can_see(knots, &i, &train);
     let leak_velocity_min = crate::measure::LEAK_PER_SIGMA * m.summary.rebuilt_velocity_sigma_m_s;
     let friction_velocity = (0.01 * vpeak).max(leak_velocity_min);
     Ok(Prepared {
@@ -472,6 +510,7 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
         h,
         held_levels,
         knots,
+        anti_alias: None,
         cycle,
         cycles,
         segment,

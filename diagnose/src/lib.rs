@@ -9,6 +9,7 @@
 //! residual structure in a flagged region falls ([`select`]); repeat (forward selection).
 //! Pure computation: no I/O. docs/diagnose.md describes every rule and threshold.
 
+pub mod antialias;
 pub mod bingham;
 pub mod calibrate;
 pub mod data;

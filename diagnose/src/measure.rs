@@ -142,6 +142,8 @@ pub struct MeasurementSummary {
     pub flat_stretches: Vec<FlatStretch>,
     /// Samples left out for them.
     pub excluded_samples: usize,
+    /// The anti-alias filter fitted with the baseline (`null`: none fits better).
+    pub anti_alias: Option<crate::antialias::AntiAlias>,
 }
 
 /// The measurement model applied to one recording.
@@ -365,6 +367,7 @@ pub fn measure(
         velocity_derived,
         flat_stretches: flats.into_iter().map(|x| x.2).collect(),
         excluded_samples,
+        anti_alias: None,
     };
     Measured {
         v: v_hat,

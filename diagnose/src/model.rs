@@ -293,7 +293,18 @@ pub fn evaluate(d: &Prepared, lay: &Layout, theta: &[f64], jac: bool) -> Evaluat
         let c2_raw = (1.0 - lam) * theta[icv + k] + lam * theta[icv + k2];
         let curv = scale * c2_raw * q2;
         let yv = fy / c;
-        let veps = (sample_leak(leak, d.v_sigma[j]).powi(2) + (leak_rel * yv).powi(2)).sqrt();
+        // Behind an anti-alias filter a sample stands for the force over its interval, not
+        // at its instant: a jump inside the interval is a fraction of it. The velocity
+        // sweeps |a| h over the interval, so the law is seen through a ramp of half that
+        // width (crate::antialias).
+        let sweep = if d.anti_alias.is_some() {
+            0.5 * d.a[j].abs() * d.measurement.sample_interval_s
+        } else {
+            0.0
+        };
+        let veps =
+            (sample_leak(leak, d.v_sigma[j]).powi(2) + (leak_rel * yv).powi(2) + sweep * sweep)
+                .sqrt();
         let (dve_la, dve_lr, dve_fy, dve_c) = if veps > 0.0 {
             (
                 leak / veps,
@@ -404,6 +415,12 @@ pub fn evaluate(d: &Prepared, lay: &Layout, theta: &[f64], jac: bool) -> Evaluat
             }
         }
         force[j] = total;
+    }
+    if let Some(aa) = &d.anti_alias {
+        aa.apply(&d.h, &mut force, 1);
+        if jac {
+            aa.apply(&d.h, &mut jm, p);
+        }
     }
     Evaluation { force, jac: jm }
 }

@@ -1,0 +1,75 @@
+"""How close can a model evaluated on the record's samples come to a proving-ground record?
+
+For each seed (nulls are the useful ones), evaluate the generator's own law with its *true*
+parameters (no hidden effect) and compare with the recorded force, in σ_F:
+
+  noise            the recording against the true force through the fine-grid filter (≈ 1)
+  coarse, no filter   true law at the filtered noise-free velocity, on the record's samples
+  coarse, filtered    the same, then the true 2nd-order Butterworth (bilinear) and its
+                      group delay advanced back — what diagnose's baseline does
+  fine ×M, filtered   the law on an M× finer grid (linear interpolation), filtered there,
+                      decimated: the floor of a sub-sample evaluation
+
+    .venv/bin/python scripts/proving_ground/measurement_floor.py 20 21 22 41 57
+
+docs/diagnose.md (Limits) quotes its output.
+"""
+import sys
+
+import numpy as np
+from scipy import signal
+
+import generate as g
+import physics
+
+P = g.P
+
+
+def coarse_filter(u, fc_per_fs):
+    k = np.tan(np.pi * fc_per_fs)
+    norm = 1 / (1 + np.sqrt(2) * k + k * k)
+    b0 = k * k * norm
+    a1, a2 = 2 * (k * k - 1) * norm, (1 - np.sqrt(2) * k + k * k) * norm
+    b, a = [b0, 2 * b0, b0], [1, a1, a2]
+    z = signal.lfilter(b, a, u, zi=signal.lfilter_zi(b, a) * u[0])[0]
+    delay = 1 - (a1 + 2 * a2) / (1 + a1 + a2)
+    return np.interp(np.arange(len(u)) + delay, np.arange(len(u)), z)
+
+
+def main(seeds):
+    for seed in seeds:
+        meta, rec = g.scenario(seed)
+        rs = g._streams(seed)
+        geo = g.draw_geometry(rs["geometry"])
+        fl = g.draw_fluid(rs["fluid"], geo)
+        p = g.base_params(geo, fl, rs["fluid"])
+        exc, t, x, v, a, icmd = g.draw_excitation(rs["excitation"], fl, "field_lag" in meta["hidden"])
+        meas = meta["measurement"]
+        fs, m, fc = exc["fs_hz"], exc["oversampling"], meas["aa_cutoff_hz"]
+        p[P["C_th"]], p[P["G_th"]] = 1e30, 1.0  # no heating: the law alone
+        sig, off = meta["sigma_F_N"], meta["force_offset_N"]
+        f_rec = rec["force_N"] - off
+        rms = lambda y: float(np.sqrt(np.mean(y ** 2)) / sig)
+        truth = g.aa_filter(physics.simulate(x, v, a, icmd, 1 / (fs * m), p)[0], fs * m, fc, m)
+        sos = signal.butter(2, fc, fs=fs * m, output="sos")
+        filt = lambda y: signal.sosfilt(sos, y, zi=signal.sosfilt_zi(sos) * y[0])[0][::m]
+        vf, xf, If = filt(v), filt(x), filt(icmd)
+        coarse = physics.simulate(xf, vf, np.gradient(vf, 1 / fs), If, 1 / fs, p)[0]
+        line = (f"seed {seed} ({fl['law']}, {fs} Hz, hidden {meta['hidden']}): "
+                f"noise {rms(f_rec - truth):.2f}, coarse no filter {rms(f_rec - coarse):.2f}, "
+                f"coarse filtered {rms(f_rec - coarse_filter(coarse, fc / fs)):.2f}")
+        for M in (2, 8):
+            n = len(vf)
+            tf = np.arange((n - 1) * M + 1) / M
+            vi, xi, Ii = (np.interp(tf, np.arange(n), y) for y in (vf, xf, If))
+            ff = physics.simulate(xi, vi, np.gradient(vi, 1 / (fs * M)), Ii, 1 / (fs * M), p)[0]
+            sos2 = signal.butter(2, fc, fs=fs * M, output="sos")
+            z = signal.sosfilt(sos2, ff, zi=signal.sosfilt_zi(sos2) * ff[0])[0]
+            d = np.sqrt(2) / (2 * np.pi * fc) * fs * M
+            zz = np.interp(np.arange(len(z)) + d, np.arange(len(z)), z)[::M]
+            line += f", fine x{M} filtered {rms(f_rec[: len(zz)] - zz):.2f}"
+        print(line)
+
+
+if __name__ == "__main__":
+    main([int(s) for s in sys.argv[1:]] or [20, 21, 22, 41, 57])
