@@ -263,12 +263,7 @@ fn knots_the_fit_can_see(mut knots: Vec<f64>, i: &[f64], train: &[bool]) -> Vec<
     while knots.len() > 1 {
         let mut support = vec![0.0; knots.len()];
         for (&c, _) in i.iter().zip(train).filter(|(_, t)| **t) {
-            let nk = knots.len();
-            let k = knots
-                .partition_point(|&x| x <= c)
-                .saturating_sub(1)
-                .min(nk - 2);
-            let lam = ((c - knots[k]) / (knots[k + 1] - knots[k])).clamp(0.0, 1.0);
+            let (k, lam, _) = knot_weights(&knots, c);
             support[k] += 1.0 - lam;
             support[k + 1] += lam;
         }
@@ -283,6 +278,23 @@ fn knots_the_fit_can_see(mut knots: Vec<f64>, i: &[f64], train: &[bool]) -> Vec<
         knots.remove(weakest);
     }
     knots
+}
+
+/// Knot segment and weight for current `i`: F(i) = (1 − λ) F[k] + λ F[k+1]; and dλ/di.
+pub fn knot_weights(knots: &[f64], i: f64) -> (usize, f64, f64) {
+    let nk = knots.len();
+    if nk == 1 || i <= knots[0] {
+        return (0, 0.0, 0.0);
+    }
+    if i >= knots[nk - 1] {
+        return (nk - 2, 1.0, 0.0);
+    }
+    let k = knots
+        .partition_point(|&x| x <= i)
+        .saturating_sub(1)
+        .min(nk - 2);
+    let w = knots[k + 1] - knots[k];
+    (k, (i - knots[k]) / w, 1.0 / w)
 }
 
 /// Two currents closer than this are one level: 2 % of the largest |I|, at least 1 mA.

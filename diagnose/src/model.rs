@@ -26,7 +26,7 @@ use numerics::least_squares::{levenberg_marquardt, LmOptions};
 use twin::Effect;
 
 use crate::bingham;
-use crate::data::Prepared;
+use crate::data::{knot_weights, Prepared};
 
 /// Where each parameter lives in the parameter vector.
 #[derive(Debug, Clone, PartialEq)]
@@ -204,23 +204,6 @@ pub struct Evaluation {
     pub force: Vec<f64>,
     /// ∂F/∂θ, row-major (empty when not asked for).
     pub jac: Vec<f64>,
-}
-
-/// Knot segment and weight for current `i`: F(i) = (1 − λ) F[k] + λ F[k+1]; and dλ/di.
-fn knot_weights(knots: &[f64], i: f64) -> (usize, f64, f64) {
-    let nk = knots.len();
-    if nk == 1 || i <= knots[0] {
-        return (0, 0.0, 0.0);
-    }
-    if i >= knots[nk - 1] {
-        return (nk - 2, 1.0, 0.0);
-    }
-    let k = knots
-        .partition_point(|&x| x <= i)
-        .saturating_sub(1)
-        .min(nk - 2);
-    let w = knots[k + 1] - knots[k];
-    ((k), (i - knots[k]) / w, 1.0 / w)
 }
 
 const FY_MIN: f64 = 1e-3;
