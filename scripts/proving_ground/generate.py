@@ -355,6 +355,31 @@ LIMITS = {"field_lag": (0.1, 6.0),               # effective lag 1-60 ms (nomina
           "fluid_compressibility": (1e-12, 20.0)}  # K_liq >= 5e7 Pa, air <= 30 %
 
 
+def absorbable_basis(rig):
+    """Columns the null model can move along without any hidden effect: per current level
+    (hat functions over the held levels, or 6 knots when the current is random) a Coulomb
+    step sign(v) and a viscous term v, both through the measurement chain, plus a constant
+    offset. The part of an effect in their span is a different yield stress, viscosity or
+    sensor offset, not missing physics (a Coulomb seal friction is exactly a field-off
+    yield); what is left is what any method could detect."""
+    fc, m, I, v = rig.meas["aa_cutoff_hz"], rig.m, rig.icmd, rig.v
+    lev = np.unique(np.round(I, 6))
+    knots = lev if len(lev) <= 8 else np.linspace(I.min(), I.max(), 6)
+    cols = []
+    for k in range(len(knots)):
+        h = np.ones_like(I) if len(knots) == 1 else np.interp(I, knots, (np.arange(len(knots)) == k) * 1.0)
+        cols.append(aa_filter(h * np.sign(v), rig.fsi, fc, m))
+        cols.append(aa_filter(h * v, rig.fsi, fc, m))
+    cols.append(np.ones(len(cols[0])))
+    return np.column_stack(cols)
+
+
+def unabsorbed_rms(B, d):
+    """RMS of d after its least-squares projection onto the absorbable columns B."""
+    c, *_ = np.linalg.lstsq(B, d, rcond=None)
+    return float(np.sqrt(np.mean((d - B @ c) ** 2)))
+
+
 def size_effect(rig, p_base, F_base, eff, st, target, tol=0.05, max_runs=9):
     """Scale s of `eff` so that RMS(F_with - F_without) = target (noise-free, measured
     force; mean removed for the gas spring). Linear scaling from a reference run (s = 1),
@@ -426,13 +451,18 @@ def scenario(seed):
     sigma_F = meas["force_noise_rel"] * F_rms
 
     settings = draw_effect_settings(erng, geo, fl, p_base, exc)
+    B_abs = absorbable_basis(rig)
     p = p_base.copy()
     effects_meta = []
     for eff in hidden:
         u_target = float(erng.uniform(1.0, 3.0))
         s, r, hist = size_effect(rig, p_base, F_base, eff, settings[eff], u_target * sigma_F)
         phys = apply_effect(p, eff, settings[eff], s)
+        p_one = p_base.copy()
+        apply_effect(p_one, eff, settings[eff], s)
+        u_seen = unabsorbed_rms(B_abs, rig.clean_force(p_one) - F_base) / sigma_F
         effects_meta.append(dict(effect=eff, u_target=u_target, u_achieved=r / sigma_F,
+                                 u_unabsorbed=u_seen,
                                  rms_effect_N=r, scale=s, parameters=phys,
                                  sizing_runs=[[float(a_), float(b_)] for a_, b_ in hist]))
 
