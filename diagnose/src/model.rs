@@ -584,20 +584,13 @@ pub fn fit_limited(d: &Prepared, lay: &Layout, theta0: &[f64], max_iter: usize) 
     clamp_bounds(d, lay, &mut theta);
     let ev = evaluate(d, lay, &theta, true);
     let sse = sse_train(d, &ev.force);
-    // λ from 1e-3, × 0.3 on success (not below 1e-9), × 10 on failure up to 12 times; the
-    // damping floor keeps a parameter the data do not move solvable; converged when an
-    // accepted step lowers the weighted SSE by 1e-7 or less. Trial points are projected
-    // onto the bounds.
+    // numerics' defaults: λ from 1e-3, × 0.3 on success (not below 1e-9), × 10 on failure
+    // up to 12 times; the damping floor keeps a parameter the data do not move solvable;
+    // converged when an accepted step lowers the weighted SSE by 1e-7 or less. Trial points
+    // are projected onto the bounds.
     let opts = LmOptions {
         max_iter,
-        max_tries: 12,
-        lambda_init: 1e-3,
-        lambda_up: 10.0,
-        lambda_down: 0.3,
-        lambda_min: 1e-9,
-        diag_floor: 1e-12,
-        rel_tol: 1e-7,
-        step_tol: 0.0,
+        ..LmOptions::default()
     };
     let fit = levenberg_marquardt(
         (theta, ev),

@@ -25,14 +25,7 @@ fn samples(kind: ModelKind, effects: EffectSet) -> Vec<SensorSample> {
         }),
     )
     .iter()
-    .map(|s| SensorSample {
-        time_s: s.time_s,
-        displacement_m: s.input.displacement_m,
-        velocity_m_s: s.input.velocity_m_s,
-        force_n: s.measured_force_n,
-        current_a: s.input.current_a,
-        temperature_c: f64::NAN,
-    })
+    .map(SensorSample::from)
     .collect()
 }
 

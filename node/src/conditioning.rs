@@ -46,6 +46,21 @@ pub struct SensorSample {
     pub temperature_c: f64,
 }
 
+impl From<&twin::stand::SimulatedSample> for SensorSample {
+    /// A simulated test-stand sample as the sensors read it: the measured (noisy) force,
+    /// no temperature channel.
+    fn from(s: &twin::stand::SimulatedSample) -> Self {
+        SensorSample {
+            time_s: s.time_s,
+            displacement_m: s.input.displacement_m,
+            velocity_m_s: s.input.velocity_m_s,
+            force_n: s.measured_force_n,
+            current_a: s.input.current_a,
+            temperature_c: f64::NAN,
+        }
+    }
+}
+
 impl SensorSample {
     /// From the ROS message.
     pub fn from_msg(m: &msgs::DamperSample) -> Self {

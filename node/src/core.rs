@@ -610,14 +610,7 @@ mod tests {
             twin::models::build(p.model, &p.model_params(), p.model.effects(p.effects)).unwrap();
         let input: Vec<SensorSample> = twin::stand::run(truth.as_mut(), &prog, None)
             .iter()
-            .map(|s| SensorSample {
-                time_s: s.time_s,
-                displacement_m: s.input.displacement_m,
-                velocity_m_s: s.input.velocity_m_s,
-                force_n: s.measured_force_n,
-                current_a: s.input.current_a,
-                temperature_c: f64::NAN,
-            })
+            .map(SensorSample::from)
             .collect();
         assert_eq!(input.len(), 4000);
         let model_of = |o: &Outputs| o.output.as_ref().map(|m| m.model_id.clone());

@@ -329,14 +329,7 @@ mod tests {
             .map(|s| s.output.force_n.abs())
             .fold(0.0, f64::max);
         for s in &truth {
-            let ss = SensorSample {
-                time_s: s.time_s,
-                displacement_m: s.input.displacement_m,
-                velocity_m_s: s.input.velocity_m_s,
-                force_n: s.measured_force_n,
-                current_a: s.input.current_a,
-                temperature_c: f64::NAN,
-            };
+            let ss = SensorSample::from(s);
             let Processed::Stepped(step) = p.process(&ss) else {
                 panic!("sample dropped")
             };
