@@ -48,6 +48,15 @@ pub struct DiagnoseArgs {
     /// Family-wise false-alarm rate per record (`calibrated`).
     #[arg(long, value_name = "ALPHA", default_value_t = ::diagnose::Calibration::default().family_alpha)]
     pub family_alpha: f64,
+    /// The twin to diagnose (parameter file, section `mrtwin_twin`, as `mrtwin fit` writes):
+    /// its effects are part of the baseline and the candidates are the effects it lacks.
+    /// The JSON gains a `twin` entry with the twin's replay residual on the recording.
+    #[arg(long, value_name = "TWIN.yaml")]
+    pub params: Option<PathBuf>,
+    /// With `--params`: write the twin with the effects found switched on and calibrated
+    /// on the recording (the twin unchanged when nothing is found).
+    #[arg(long, value_name = "UPGRADED.yaml", requires = "params")]
+    pub write_params: Option<PathBuf>,
 }
 
 fn parse_selector(s: &str) -> Result<Selector, String> {
@@ -122,7 +131,15 @@ pub fn run(args: &DiagnoseArgs) -> Result<()> {
             args.replicates
         );
     }
+    let twin = match &args.params {
+        Some(p) => Some(crate::fit::base_params(Some(p), None, None)?),
+        None => None,
+    };
+    let base_effects = twin.as_ref().map_or_else(Vec::new, |t| {
+        t.model.effects(t.effects).iter().collect::<Vec<_>>()
+    });
     let opts = Options {
+        base_effects,
         selector: args.selector,
         calibration: ::diagnose::Calibration {
             replicates: args.replicates,
@@ -140,8 +157,22 @@ pub fn run(args: &DiagnoseArgs) -> Result<()> {
         }
     }
     let md = render_markdown(&dg.report);
+    let twin_entry = match (&twin, &args.params) {
+        (Some(t), Some(p)) => Some(crate::upgrade::write_upgraded(
+            t,
+            p,
+            &dg,
+            &args.input,
+            args.write_params.as_deref(),
+        )?),
+        _ => None,
+    };
     if let Some(path) = &args.json {
-        let text = serde_json::to_string_pretty(&dg.report).context("cannot encode JSON")?;
+        let mut value = serde_json::to_value(&dg.report).context("cannot encode JSON")?;
+        if let Some(entry) = twin_entry.clone() {
+            value["twin"] = entry;
+        }
+        let text = serde_json::to_string_pretty(&value).context("cannot encode JSON")?;
         fs::write(path, text + "\n").with_context(|| format!("cannot write {}", path.display()))?;
     }
     if let Some(dir) = &args.plots {
@@ -170,6 +201,17 @@ pub fn run(args: &DiagnoseArgs) -> Result<()> {
             );
         }
         None => print!("{md}"),
+    }
+    if let Some(up) = twin_entry.as_ref().and_then(|t| t.get("upgraded")) {
+        println!(
+            "upgraded twin {}: replay RMS {:.2} N → {:.2} N (ratio {:.3})",
+            up["file"].as_str().unwrap_or_default(),
+            twin_entry.as_ref().map_or(f64::NAN, |t| t["replay_rmse_N"]
+                .as_f64()
+                .unwrap_or(f64::NAN)),
+            up["replay_rmse_N"].as_f64().unwrap_or(f64::NAN),
+            up["replay_ratio"].as_f64().unwrap_or(f64::NAN)
+        );
     }
     Ok(())
 }

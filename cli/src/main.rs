@@ -14,6 +14,7 @@
 
 mod convert;
 mod diagnose;
+mod fit;
 mod identify;
 mod info;
 mod live;
@@ -27,6 +28,7 @@ mod record;
 mod replay;
 mod simulate;
 mod stop;
+mod upgrade;
 mod yield_stress;
 
 use std::process::ExitCode;
@@ -72,6 +74,8 @@ enum Command {
     Convert(convert::ConvertArgs),
     /// Identify the Bodner–Partom law from recordings (Skalski & Zalewski: 5.3, 5.5).
     Identify(identify::IdentifyArgs),
+    /// Calibrate the twin's own model to recordings; write it as a parameter file the nodes read.
+    Fit(fit::FitArgs),
 }
 
 impl Command {
@@ -108,6 +112,7 @@ fn main() -> ExitCode {
         Command::Diagnose(args) => diagnose::run(args),
         Command::Convert(args) => convert::run(args),
         Command::Identify(args) => identify::run(args),
+        Command::Fit(args) => fit::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -86,7 +86,8 @@ pub struct SimulateArgs {
     #[arg(long, value_name = "LIST")]
     pub effects: Option<String>,
     /// Model parameters: YAML file (ROS 2 ros__parameters, node `mrtwin_stand`, or plain)
-    /// with sections bingham, spencer, direct_shear, two_chamber.
+    /// with sections bingham, spencer, direct_shear, two_chamber (a stand's other keys are
+    /// accepted and not used: the flags set the programme).
     #[arg(long, value_name = "FILE.yaml")]
     pub params: Option<PathBuf>,
     /// Two-chamber: constitutive law of the fluid in the gap.
@@ -181,7 +182,11 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
 fn model_params(args: &SimulateArgs, kind: ModelKind, effects: EffectSet) -> Result<ModelParams> {
     let mut params = match &args.params {
         Some(path) => {
-            launch_config::load_params::<ModelParams>(path, PARAMS_NODE).context("--params")?
+            // A stand section (as `mrtwin fit` writes, or a stand's own file): its model
+            // sections; its other keys are the live stand's.
+            launch_config::load_params::<node::stand::StandParams>(path, PARAMS_NODE)
+                .context("--params")?
+                .model_params()
         }
         None => ModelParams::default(),
     };

@@ -52,6 +52,9 @@ pub struct Options {
     pub thresholds: AcceptanceThresholds,
     /// The bootstrap calibration (the `calibrated` selector).
     pub calibration: Calibration,
+    /// Effects the baseline already has (a twin's own, `diagnose --params`): fitted with
+    /// the baseline and never candidates.
+    pub base_effects: Vec<Effect>,
 }
 
 /// What a long diagnosis is doing, for a progress bar.
@@ -805,7 +808,10 @@ fn forward_selection(
 ) -> Selection {
     let th = &opts.thresholds;
     let mut sel = Selection::new(base);
-    let mut remaining: Vec<Effect> = Effect::ALL.to_vec();
+    let mut remaining: Vec<Effect> = Effect::ALL
+        .into_iter()
+        .filter(|e| base.layout.index(*e).is_none())
+        .collect();
     // Candidates that tied with the one accepted in the previous round.
     let mut pending_ties: Vec<(Effect, Effect)> = Vec::new();
     for round in 1..=Effect::ALL.len() {
@@ -913,7 +919,10 @@ fn forward_selection(
 /// effects fitted one after the other (no acceptance test).
 fn sindy_selection(d: &Prepared, reg: &Regions, base: &Fit, opts: &Options) -> Selection {
     let mut sel = Selection::new(base);
-    for e in crate::sindy::sindy_select(d, base) {
+    for e in crate::sindy::sindy_select(d, base)
+        .into_iter()
+        .filter(|e| base.layout.index(*e).is_none())
+    {
         let flags = flagged(d, reg, &residual(d, &sel.current.force), &opts.thresholds);
         let cand = fit_candidate(d, &sel.current, e);
         let j = judge(d, reg, &sel.current, &flags, cand, e, &opts.thresholds);
@@ -947,11 +956,18 @@ pub fn diagnose(signals: &Signals, input: &str, opts: &Options) -> Result<Diagno
 /// and baseline + compressibility under the filter must beat baseline + compressibility
 /// without it; and it must predict the held-out blocks better too. Sets `d.anti_alias`
 /// and returns the baseline under it.
-fn baseline_and_anti_alias(d: &mut Prepared) -> Fit {
+fn baseline_and_anti_alias(d: &mut Prepared, base_effects: &[Effect]) -> Fit {
     use crate::antialias::{AntiAlias, CUTOFF_GRID};
     d.anti_alias = None;
     let (lay, theta) = crate::model::baseline_start(d);
-    let plain = fit(d, &lay, &theta);
+    let mut plain = fit(d, &lay, &theta);
+    for &e in base_effects {
+        if plain.layout.index(e).is_none() {
+            plain = fit_candidate(d, &plain, e);
+        }
+    }
+    let lay = plain.layout.clone();
+    let has_compressibility = lay.index(Effect::FluidCompressibility).is_some();
     let dt = d.measurement.sample_interval_s;
     let filtered: Vec<(AntiAlias, Fit)> = std::thread::scope(|s| {
         let handles: Vec<_> = CUTOFF_GRID
@@ -985,6 +1001,11 @@ fn baseline_and_anti_alias(d: &mut Prepared) -> Fit {
     if base.holdout_rmse(&df) >= plain.holdout_rmse(d) {
         return plain;
     }
+    if has_compressibility {
+        // The baseline's own compressibility takes up the lag either way.
+        d.anti_alias = Some(aa);
+        return base;
+    }
     let (with_filter, without) = std::thread::scope(|s| {
         let a = s.spawn(|| fit_candidate(&df, &base, Effect::FluidCompressibility).train_sse);
         let b = s.spawn(|| fit_candidate(d, &plain, Effect::FluidCompressibility).train_sse);
@@ -1017,7 +1038,7 @@ pub fn diagnose_with_progress(
     });
     let mut d = prepare(signals)?;
     let reg = regions(&d);
-    let first = baseline_and_anti_alias(&mut d);
+    let first = baseline_and_anti_alias(&mut d, &opts.base_effects);
     // Errors in variables: weight each sample by how predictable its force is under the
     // rebuilt velocity's error, then refit.
     d.weight = crate::model::predictive_weights(&d, &first);

@@ -280,3 +280,34 @@ fn resolve(origins: &[Origin<'_>], path: &[Seg]) -> (String, Option<usize>) {
 
 #[cfg(test)]
 mod tests;
+
+/// Writes a ROS 2 parameter file: one `NODE: ros__parameters: …` section per
+/// `(node, parameters)` pair, in order, with a `# ` comment header.
+///
+/// The result reads back with [`parse_params`] into the type it was written
+/// from (the round trip is tested).
+///
+/// # Errors
+/// The serializer's message when a value cannot be written as YAML.
+pub fn params_yaml<T: serde::Serialize>(
+    header: &str,
+    sections: &[(&str, &T)],
+) -> Result<String, String> {
+    let mut out = String::new();
+    for line in header.lines() {
+        out.push_str("# ");
+        out.push_str(line);
+        out.push('\n');
+    }
+    for (node, params) in sections {
+        let body = serde_norway::to_string(params).map_err(|e| e.to_string())?;
+        out.push_str(node);
+        out.push_str(":\n  ros__parameters:\n");
+        for line in body.lines() {
+            out.push_str("    ");
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+    Ok(out)
+}

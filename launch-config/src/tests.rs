@@ -500,3 +500,38 @@ fn load_node_params_merges_files_and_overrides() {
     let params: Params = load_node_params(&cli_only, "n").expect("defaults");
     assert_eq!(params.rate_hz, 5.0);
 }
+
+#[test]
+fn a_written_parameter_file_reads_back_for_each_node() {
+    #[derive(Debug, Default, PartialEq, Deserialize, serde::Serialize)]
+    #[serde(deny_unknown_fields, default)]
+    struct Written {
+        model: String,
+        coefficients: [f64; 3],
+        inner: Inner,
+    }
+    #[derive(Debug, Default, PartialEq, Deserialize, serde::Serialize)]
+    #[serde(deny_unknown_fields, default)]
+    struct Inner {
+        tiny: f64,
+        big: f64,
+    }
+    let p = Written {
+        model: "two-chamber".into(),
+        coefficients: [-0.1, 1.0 / 3.0, 45_000.5],
+        inner: Inner {
+            tiny: 1.234_567_890_123e-9,
+            big: 7.5e14,
+        },
+    };
+    let text = params_yaml(
+        "written by a test\nsecond line",
+        &[("a_node", &p), ("b_node", &p)],
+    )
+    .unwrap();
+    assert!(text.starts_with("# written by a test\n# second line\n"));
+    for node in ["a_node", "/b_node"] {
+        let back: Written = parse_params(&text, "w.yaml", node).unwrap();
+        assert_eq!(back, p, "{node}");
+    }
+}

@@ -7,6 +7,8 @@
 //!   and replays, so a replay gives the same numbers as the live run.
 //! * [`diagnostics`]: health checks as `diagnostic_msgs/DiagnosticArray`.
 //! * [`config`]: the nodes' `ros__parameters`.
+//! * [`fit`]: the twin's own model calibrated to recordings through the pipeline
+//!   (`mrtwin fit`), so a replay shows the residual the fit minimised.
 //! * [`core`]: the twin core: one sample in, the messages to publish out (outputs, yield
 //!   estimates, diagnostics on the sample stamps); no clock, no transport. Live, replay
 //!   and record are thin loops around it.
@@ -19,6 +21,7 @@ pub mod conditioning;
 pub mod config;
 pub mod core;
 pub mod diagnostics;
+pub mod fit;
 pub mod pipeline;
 pub mod runner;
 pub mod stand;

@@ -131,7 +131,8 @@ impl StandParams {
         p
     }
 
-    fn model_params(&self) -> ModelParams {
+    /// The model parameters of the four sections.
+    pub fn model_params(&self) -> ModelParams {
         ModelParams {
             bingham: self.bingham.clone(),
             spencer: self.spencer.clone(),

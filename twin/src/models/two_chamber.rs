@@ -153,6 +153,9 @@ pub struct TwoChamberParams {
     pub heat_capacity_j_per_k: f64,
     /// Heat loss conductance to ambient \[W/K\] (`thermal_softening`).
     pub heat_loss_w_per_k: f64,
+    /// What the load cell reads at zero rod force \[N\]: a rig's zero error, added to the
+    /// predicted force (a measurement offset, not physics; `mrtwin fit` estimates it).
+    pub load_cell_offset_n: f64,
     /// Longest internal integration step \[s\].
     pub max_substep_s: f64,
 }
@@ -180,6 +183,7 @@ impl Default for TwoChamberParams {
             field_time_constant_s: 0.010,
             heat_capacity_j_per_k: 300.0,
             heat_loss_w_per_k: 1.5,
+            load_cell_offset_n: 0.0,
             max_substep_s: 1.0e-3,
         }
     }
@@ -376,7 +380,10 @@ impl TwoChamber {
         } else {
             0.0
         };
-        let force = p.annulus_area() * self.p1 - p.piston_area() * self.p2 + ff + inertia;
+        let force = p.annulus_area() * self.p1 - p.piston_area() * self.p2
+            + ff
+            + inertia
+            + p.load_cell_offset_n;
         let power = (q * dp).max(0.0) + ff * inp.velocity_m_s;
         (force, power)
     }

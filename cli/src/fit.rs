@@ -1,0 +1,315 @@
+//! `mrtwin fit RECORDING… --out TWIN.yaml`: calibrate the twin's own model to recordings
+//! (`node::fit`) and write it as a parameter file that `node`, `stand`, `replay` and
+//! `simulate` read as is.
+//!
+//! The held-out check: each record is cut into contiguous time blocks; the model is fitted
+//! on the even blocks and judged on the odd ones. The parameters written are then refitted
+//! on every sample, starting from there.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use launch_config::load_params;
+use node::conditioning::SensorSample;
+use node::config::{TwinNodeParams, STAND_NODE, TWIN_NODE};
+use node::fit::{
+    alternate_blocks, current_levels, fit, free_parameters, predict, rms_residual, FitOutcome,
+    FitProblem,
+};
+use node::pipeline::PipelineConfig;
+use numerics::least_squares::LmStop;
+use serde::Serialize;
+use serde_json::json;
+use twin::models::{BinghamParams, ModelKind, ModelParams, TwoChamberParams};
+use twin::EffectSet;
+
+/// Arguments of `mrtwin fit`.
+#[derive(Debug, Args)]
+pub struct FitArgs {
+    /// Recordings (CSV in the PHYSICS.md format, rosbag2 directories or .mcap files).
+    #[arg(required = true, value_name = "RECORDING")]
+    pub recordings: Vec<PathBuf>,
+    /// Model to fit: `two-chamber` or `bingham` (default: the one of `--params`, else
+    /// two-chamber).
+    #[arg(long, value_name = "NAME")]
+    pub model: Option<String>,
+    /// Effects of the two-chamber model, comma separated ids, `paper`, `all` or `none`
+    /// (default: those of `--params`, else none).
+    #[arg(long, value_name = "LIST")]
+    pub effects: Option<String>,
+    /// Twin parameter file to start from (section `mrtwin_twin`): geometry, fluid law and
+    /// every parameter the fit holds.
+    #[arg(long, value_name = "BASE.yaml")]
+    pub params: Option<PathBuf>,
+    /// Where to write the fitted twin (sections `mrtwin_twin` and `mrtwin_stand`).
+    #[arg(long, value_name = "TWIN.yaml")]
+    pub out: PathBuf,
+    /// Also write the fit's report as JSON here.
+    #[arg(long, value_name = "OUT.json")]
+    pub json: Option<PathBuf>,
+    /// Contiguous time blocks per record for the held-out check (odd ones held out).
+    #[arg(long, value_name = "N", default_value_t = 8)]
+    pub blocks: usize,
+}
+
+/// What the written file holds for each node: the model, its effects and its section.
+#[derive(Debug, Serialize)]
+pub struct TwinSection<'a> {
+    /// Model.
+    pub model: ModelKind,
+    /// Effects (ids, or `none`).
+    pub effects: String,
+    /// `bingham` parameters (model `bingham`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bingham: Option<&'a BinghamParams>,
+    /// `two_chamber` parameters (model `two-chamber`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub two_chamber: Option<&'a TwoChamberParams>,
+}
+
+impl<'a> TwinSection<'a> {
+    /// The section of `model` with `effects` and `params`.
+    pub fn new(model: ModelKind, effects: EffectSet, params: &'a ModelParams) -> Self {
+        Self {
+            model,
+            effects: effects.to_string(),
+            bingham: (model == ModelKind::Bingham).then_some(&params.bingham),
+            two_chamber: (model == ModelKind::TwoChamber).then_some(&params.two_chamber),
+        }
+    }
+}
+
+/// Write the twin file at `out` whole or not at all (written beside it, then renamed).
+pub fn write_twin_file(out: &Path, header: &str, section: &TwinSection<'_>) -> Result<()> {
+    let text = launch_config::params_yaml(header, &[(TWIN_NODE, section), (STAND_NODE, section)])
+        .map_err(|e| anyhow::anyhow!("cannot write the parameters as YAML: {e}"))?;
+    let tmp = out.with_extension("yaml.partial");
+    std::fs::write(&tmp, text).with_context(|| format!("write {}", tmp.display()))?;
+    std::fs::rename(&tmp, out).with_context(|| format!("write {}", out.display()))?;
+    Ok(())
+}
+
+/// The records as the node sees them, one list per file.
+pub fn load_records(paths: &[PathBuf]) -> Result<Vec<Vec<SensorSample>>> {
+    paths
+        .iter()
+        .map(|p| {
+            let rec = bridge::open_recording(p).with_context(|| format!("read {}", p.display()))?;
+            if rec.is_empty() {
+                bail!("{}: no samples", p.display());
+            }
+            Ok(rec
+                .samples
+                .iter()
+                .map(SensorSample::from_recording)
+                .collect())
+        })
+        .collect()
+}
+
+/// Base parameters: the file's, with the model and effects of the flags.
+pub fn base_params(
+    params: Option<&Path>,
+    model: Option<&str>,
+    effects: Option<&str>,
+) -> Result<TwinNodeParams> {
+    let mut p: TwinNodeParams = match params {
+        Some(f) => load_params(f, TWIN_NODE)?,
+        None => TwinNodeParams {
+            effects: twin::EffectsChoice::List(EffectSet::NONE),
+            ..TwinNodeParams::default()
+        },
+    };
+    if let Some(m) = model {
+        p.model = m.parse().context("--model")?;
+    }
+    if let Some(e) = effects {
+        p.effects = e.parse().context("--effects")?;
+    }
+    p.validate()?;
+    Ok(p)
+}
+
+fn stop_text(stop: LmStop) -> &'static str {
+    match stop {
+        LmStop::Converged => "converged",
+        LmStop::NoDescent => "no step lowers the residual further",
+        LmStop::NoLinearization => "the model could not be linearised",
+        LmStop::MaxIterations => "iteration limit",
+    }
+}
+
+/// Fit `config`'s free parameters to `records`: the held-out check on alternate blocks,
+/// then the refit on all samples. Returns (split fit, held-out RMS at the start, held-out
+/// RMS of the split fit, per-block held-out RMS, full fit, notes).
+pub struct Calibrated {
+    /// Fit on the even blocks.
+    pub split: FitOutcome,
+    /// Held-out RMS of the start parameters \[N\].
+    pub holdout_start_rmse_n: f64,
+    /// Held-out RMS of the split fit \[N\].
+    pub holdout_rmse_n: f64,
+    /// Held-out RMS per held-out block (record, block, RMS).
+    pub holdout_blocks: Vec<(usize, usize, f64)>,
+    /// Fit on every sample: what is written.
+    pub full: FitOutcome,
+    /// What the records identify and what was held.
+    pub notes: Vec<String>,
+}
+
+/// Calibrate `config` to `records` (see [`Calibrated`]).
+pub fn calibrate(
+    config: &PipelineConfig,
+    records: &[Vec<SensorSample>],
+    blocks: usize,
+) -> Result<Calibrated> {
+    let levels = current_levels(records);
+    let (keys, notes) = free_parameters(config.model, &config.params, config.effects, levels)?;
+    let blocks = blocks.max(2);
+    let mask = alternate_blocks(records, blocks);
+    let split_problem = FitProblem {
+        config: config.clone(),
+        keys: keys.clone(),
+        records,
+        mask: mask.clone(),
+    };
+    let split = fit(&split_problem).context("fit on the even blocks")?;
+    if split.stop == LmStop::MaxIterations {
+        bail!(
+            "the fit did not converge in {} iterations (RMS {:.4} N): the model does not \
+             describe these records well enough to calibrate",
+            split.iterations,
+            split.rmse_n
+        );
+    }
+    let held = |r: usize, j: usize| !mask[r][j];
+    let (holdout_start_rmse_n, _) = rms_residual(records, &predict(config, records), held);
+    let split_cfg = PipelineConfig {
+        params: split.params.clone(),
+        ..config.clone()
+    };
+    let pred = predict(&split_cfg, records);
+    let (holdout_rmse_n, _) = rms_residual(records, &pred, held);
+    let mut holdout_blocks = Vec::new();
+    for (r, rec) in records.iter().enumerate() {
+        let n = rec.len().max(1);
+        for b in (1..blocks).step_by(2) {
+            let (rms, count) = rms_residual(records, &pred, |rr, j| rr == r && j * blocks / n == b);
+            if count > 0 {
+                holdout_blocks.push((r, b, rms));
+            }
+        }
+    }
+    let full_problem = FitProblem {
+        config: split_cfg,
+        keys,
+        records,
+        mask: records.iter().map(|r| vec![true; r.len()]).collect(),
+    };
+    let full = fit(&full_problem).context("fit on all samples")?;
+    if full.stop == LmStop::MaxIterations {
+        bail!(
+            "the fit on all samples did not converge in {} iterations",
+            full.iterations
+        );
+    }
+    Ok(Calibrated {
+        split,
+        holdout_start_rmse_n,
+        holdout_rmse_n,
+        holdout_blocks,
+        full,
+        notes,
+    })
+}
+
+/// The fit's report as JSON.
+pub fn report_json(c: &Calibrated, inputs: &[PathBuf]) -> serde_json::Value {
+    json!({
+        "inputs": inputs.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
+        "identifiable": c.notes,
+        "samples": c.full.samples,
+        "start_rmse_n": c.full.start_rmse_n,
+        "rmse_n": c.full.rmse_n,
+        "iterations": c.full.iterations,
+        "stop": stop_text(c.full.stop),
+        "holdout": {
+            "how": "contiguous time blocks per record; fitted on the even blocks, judged on the odd ones",
+            "start_rmse_n": c.holdout_start_rmse_n,
+            "fitted_rmse_n": c.holdout_rmse_n,
+            "fit_rmse_n": c.split.rmse_n,
+            "blocks": c.holdout_blocks.iter().map(|(r, b, rms)| json!({"record": r, "block": b, "rmse_n": rms})).collect::<Vec<_>>(),
+        },
+        "parameters": c.full.fitted.iter().map(|p| json!({
+            "key": p.key.key(),
+            "start": p.start,
+            "value": p.value,
+            "std_error": p.std_error,
+            "ci95": [p.value - 1.96 * p.std_error, p.value + 1.96 * p.std_error],
+        })).collect::<Vec<_>>(),
+    })
+}
+
+/// `mrtwin fit`.
+pub fn run(args: &FitArgs) -> Result<()> {
+    let params = base_params(
+        args.params.as_deref(),
+        args.model.as_deref(),
+        args.effects.as_deref(),
+    )?;
+    let config = params.pipeline_config()?;
+    let records = load_records(&args.recordings)?;
+    let c = calibrate(&config, &records, args.blocks)?;
+    let header = format!(
+        "Written by `mrtwin fit` from {}.\nModel {}, effects {}: RMS residual {:.4} N (start {:.4} N); \
+         held-out {:.4} N (start {:.4} N).",
+        args.recordings
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", "),
+        config.model,
+        config.effects,
+        c.full.rmse_n,
+        c.full.start_rmse_n,
+        c.holdout_rmse_n,
+        c.holdout_start_rmse_n
+    );
+    write_twin_file(
+        &args.out,
+        &header,
+        &TwinSection::new(config.model, config.effects, &c.full.params),
+    )?;
+    if let Some(j) = &args.json {
+        let text = serde_json::to_string_pretty(&report_json(&c, &args.recordings))?;
+        std::fs::write(j, text).with_context(|| format!("write {}", j.display()))?;
+    }
+    println!(
+        "fit: model {}, effects {}, {} samples: RMS {:.4} N (start {:.4} N), held-out {:.4} N \
+         (start {:.4} N); {} ({} iterations)",
+        config.model,
+        config.effects,
+        c.full.samples,
+        c.full.rmse_n,
+        c.full.start_rmse_n,
+        c.holdout_rmse_n,
+        c.holdout_start_rmse_n,
+        stop_text(c.full.stop),
+        c.full.iterations
+    );
+    for n in &c.notes {
+        println!("  note: {n}");
+    }
+    for p in &c.full.fitted {
+        println!(
+            "  {:<40} {:>14.6e}  ± {:.2e} (95 %: ±{:.2e})",
+            p.key.key(),
+            p.value,
+            p.std_error,
+            1.96 * p.std_error
+        );
+    }
+    println!("wrote {}", args.out.display());
+    Ok(())
+}

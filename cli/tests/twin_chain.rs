@@ -1,0 +1,312 @@
+//! The closed loop of issue 12, end to end through the binary: `mrtwin fit` →
+//! `mrtwin diagnose --params --write-params` → `mrtwin replay` of both twins, on simulated
+//! records and on real ones (UTFSM, Dyke), and the refusals (files, identifiability).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use mrtwin_tests::TempDir;
+use node::config::{TwinNodeParams, TWIN_NODE};
+
+fn mrtwin<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_mrtwin"))
+        .args(args)
+        .output()
+        .expect("cannot run the mrtwin binary")
+}
+
+fn ok(o: Output, what: &str) -> Output {
+    assert!(
+        o.status.success(),
+        "{what} failed:\n{}\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    o
+}
+
+fn p(path: &Path) -> String {
+    path.display().to_string()
+}
+
+/// Column `name` of a CSV file.
+fn column(path: &Path, name: &str) -> Vec<f64> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let k = header.iter().position(|h| *h == name).unwrap();
+    lines
+        .map(|l| l.split(',').nth(k).unwrap().parse::<f64>().unwrap())
+        .collect()
+}
+
+fn rms(x: &[f64]) -> f64 {
+    let v: Vec<f64> = x.iter().copied().filter(|e| e.is_finite()).collect();
+    (v.iter().map(|e| e * e).sum::<f64>() / v.len() as f64).sqrt()
+}
+
+/// Replay RMS residual of `params` on `rec`.
+fn replay_rms(dir: &Path, rec: &Path, params: &Path, tag: &str) -> f64 {
+    let out = dir.join(format!("replay-{tag}.csv"));
+    ok(
+        mrtwin(&["replay", &p(rec), "--params", &p(params), "--out", &p(&out)]),
+        "replay",
+    );
+    rms(&column(&out, "residual_N"))
+}
+
+struct Chain {
+    twin: PathBuf,
+    upgraded: PathBuf,
+    json: serde_json::Value,
+    twin_rms: f64,
+    upgraded_rms: f64,
+}
+
+fn chain(dir: &Path, rec: &Path) -> Chain {
+    let twin = dir.join("twin.yaml");
+    let upgraded = dir.join("upgraded.yaml");
+    let js = dir.join("d.json");
+    ok(mrtwin(&["fit", &p(rec), "--out", &p(&twin)]), "fit");
+    ok(
+        mrtwin(&[
+            "diagnose",
+            &p(rec),
+            "--params",
+            &p(&twin),
+            "--write-params",
+            &p(&upgraded),
+            "--json",
+            &p(&js),
+            "--report",
+            &p(&dir.join("d.md")),
+        ]),
+        "diagnose --params",
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&js).unwrap()).unwrap();
+    let twin_rms = replay_rms(dir, rec, &twin, "twin");
+    let upgraded_rms = replay_rms(dir, rec, &upgraded, "upgraded");
+    Chain {
+        twin,
+        upgraded,
+        json,
+        twin_rms,
+        upgraded_rms,
+    }
+}
+
+fn found(c: &Chain) -> Vec<String> {
+    c.json["findings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["effect"].as_str().unwrap().to_string())
+        .collect()
+}
+
+fn load(path: &Path) -> TwinNodeParams {
+    launch_config::load_params(path, TWIN_NODE).unwrap()
+}
+
+fn simulate(dir: &Path, name: &str, effects: &str, extra: &[&str], seed: u64) -> PathBuf {
+    let out = dir.join(name);
+    let seed = seed.to_string();
+    let mut args = vec![
+        "simulate",
+        "--model",
+        "two-chamber",
+        "--effects",
+        effects,
+        "--noise",
+        "0.005",
+        "--seed",
+        &seed,
+        "--out",
+    ];
+    let o = p(&out);
+    args.push(&o);
+    args.extend_from_slice(extra);
+    ok(mrtwin(&args), "simulate");
+    out
+}
+
+#[test]
+fn on_a_record_with_nothing_missing_the_upgrade_is_the_fitted_twin_at_the_noise_floor() {
+    let dir = TempDir::new("chain-null");
+    let rec = simulate(&dir.path(""), "null.csv", "none", &[], 3);
+    let c = chain(&dir.path(""), &rec);
+    assert!(found(&c).is_empty(), "found {:?}", found(&c));
+    let (twin, up) = (load(&c.twin), load(&c.upgraded));
+    assert_eq!(twin.model_params(), up.model_params());
+    assert_eq!(
+        twin.model.effects(twin.effects),
+        up.model.effects(up.effects)
+    );
+    assert_eq!(c.twin_rms, c.upgraded_rms);
+    // The noise of `simulate --noise 0.005`: 0.5 % of the peak |F| of the noiseless force.
+    let force = column(&rec, "force_N");
+    let sigma = 0.005 * force.iter().fold(0.0f64, |m, f| m.max(f.abs()));
+    assert!(
+        (c.twin_rms / sigma - 1.0).abs() < 0.1,
+        "replay RMS {} against the noise σ ≈ {sigma}",
+        c.twin_rms
+    );
+    // The fit started far away (default τ_y) yet the twin file is what replay reproduces.
+    let reported = c.json["twin"]["replay_rmse_N"].as_f64().unwrap();
+    assert!((reported - c.twin_rms).abs() < 1e-6 * c.twin_rms);
+}
+
+#[test]
+fn a_hidden_gas_spring_reaches_the_twin_and_replay_confirms_the_claimed_gain() {
+    let dir = TempDir::new("chain-gas");
+    let rec = simulate(
+        &dir.path(""),
+        "gas.csv",
+        "gas_spring",
+        &["--gas-preload", "4.0e6"],
+        4,
+    );
+    let c = chain(&dir.path(""), &rec);
+    assert!(
+        found(&c).contains(&"gas_spring".to_string()),
+        "{:?}",
+        found(&c)
+    );
+    let up = load(&c.upgraded);
+    assert!(up.model.effects(up.effects).has(twin::Effect::GasSpring));
+    assert!(
+        c.upgraded_rms < c.twin_rms,
+        "{} → {}",
+        c.twin_rms,
+        c.upgraded_rms
+    );
+    let claim = c.json["twin"]["predicted_replay_ratio"].as_f64().unwrap();
+    let ratio = c.upgraded_rms / c.twin_rms;
+    assert!(
+        (ratio - claim).abs() <= 0.15,
+        "replay ratio {ratio} against diagnose's {claim}"
+    );
+    // The stand and the simulator take the upgraded file as it is.
+    ok(
+        mrtwin(&[
+            "simulate",
+            "--model",
+            "two-chamber",
+            "--effects",
+            "gas_spring",
+            "--params",
+            &p(&c.upgraded),
+            "--duration",
+            "0.5",
+            "--out",
+            &p(&dir.path("").join("again.csv")),
+        ]),
+        "simulate --params upgraded",
+    );
+}
+
+fn real_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/real")
+}
+
+/// UTFSM test `stem`, five currents concatenated (as scripts/diagnose-real.py does).
+fn utfsm(stem: &str, out: &Path) {
+    let mut text = String::from("time_s,displacement_m,velocity_m_s,force_N,current_A\n");
+    let mut t_end = 0.0;
+    for (tag, amps) in [
+        ("0A", 0.0),
+        ("0x25A", 0.25),
+        ("0x5A", 0.5),
+        ("0x75A", 0.75),
+        ("1A", 1.0),
+    ] {
+        let path = real_dir().join(format!("maurel-utfsm/preprocessed/{stem}{tag}.txt"));
+        let rows: Vec<Vec<f64>> = std::fs::read_to_string(&path)
+            .unwrap()
+            .lines()
+            .filter(|l| !l.trim().is_empty())
+            .map(|l| l.split_whitespace().map(|x| x.parse().unwrap()).collect())
+            .collect();
+        let (t0, dt) = (rows[0][0], rows[1][0] - rows[0][0]);
+        let mut last = t_end;
+        for r in &rows {
+            last = t_end + r[0] - t0;
+            text.push_str(&format!(
+                "{last:.6},{},{},{},{amps}\n",
+                r[1] * 1e-3,
+                r[2] * 1e-3,
+                r[3]
+            ));
+        }
+        t_end = last + dt;
+    }
+    std::fs::write(out, text).unwrap();
+}
+
+#[test]
+fn real_records_upgrade_the_twin_where_diagnose_finds_something() {
+    let dir = TempDir::new("chain-real");
+    let rec = &dir.path("").join("utfsm-2mm5Hz.csv");
+    utfsm("2mm5Hz", rec);
+    let c = chain(&dir.path(""), rec);
+    assert!(
+        !found(&c).is_empty(),
+        "the UTFSM record's compliance is large"
+    );
+    assert!(
+        c.upgraded_rms < 0.8 * c.twin_rms,
+        "{} → {}",
+        c.twin_rms,
+        c.upgraded_rms
+    );
+    let dyke = real_dir().join("dyke-nees/ransim_u.csv");
+    let d = TempDir::new("chain-dyke");
+    let c = chain(&d.path(""), &dyke);
+    let claim = c.json["twin"]["predicted_replay_ratio"].as_f64().unwrap();
+    let ratio = c.upgraded_rms / c.twin_rms;
+    assert!(
+        ratio <= 1.0 + 1e-9,
+        "an upgrade must not replay worse: {ratio}"
+    );
+    assert!((ratio - claim).abs() <= 0.15, "{ratio} against {claim}");
+}
+
+#[test]
+fn bad_files_and_unidentifiable_fits_are_refused_and_nothing_is_written() {
+    let dir = TempDir::new("chain-bad");
+    let rec = simulate(&dir.path(""), "one.csv", "none", &["--current", "0.8"], 5);
+    // Field lag on a record whose current never changes: its time constant moves nothing.
+    let out = &dir.path("").join("lag.yaml");
+    let o = mrtwin(&["fit", &p(&rec), "--effects", "field_lag", "--out", &p(out)]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        err.contains("not identifiable") && err.contains("field_time_constant_s"),
+        "{err}"
+    );
+    assert!(!out.exists() && !out.with_extension("yaml.partial").exists());
+    // A twin file with a misspelt key: file, key and line.
+    let bad = &dir.path("").join("bad.yaml");
+    std::fs::write(
+        bad,
+        "mrtwin_twin:\n  ros__parameters:\n    model: two-chamber\n    two_chamber:\n      bulk_modulus: 1.0e9\n",
+    )
+    .unwrap();
+    let up = &dir.path("").join("up.yaml");
+    let o = mrtwin(&[
+        "diagnose",
+        &p(&rec),
+        "--params",
+        &p(bad),
+        "--write-params",
+        &p(up),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        err.contains("bad.yaml") && err.contains("line 5") && err.contains("bulk_modulus"),
+        "{err}"
+    );
+    assert!(!up.exists());
+}

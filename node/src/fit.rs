@@ -1,0 +1,866 @@
+//! Calibration of the twin's own model to recordings (`mrtwin fit`, issue 12).
+//!
+//! The records are run through the same [`TwinPipeline`] as the live node and `replay`
+//! (conditioning, model stepping on the sample stamps; no estimator), so the residual
+//! the fit minimises is the one a replay of the fitted parameters shows. The free
+//! parameters are the model's own keys ([`ParamKey`]); positive ones are fitted in log
+//! space, the others around their start on the scale of their start. Levenberg–Marquardt
+//! ([`numerics::least_squares`]) with a forward-difference Jacobian, whose columns are
+//! simulated in parallel.
+//!
+//! What a record can identify ([`free_parameters`]): with the geometry unknown, the yield
+//! force and viscous coefficient as laws in current, through τ_y(I), μ(I) at the base
+//! geometry (as many polynomial coefficients as the record has current levels, at most
+//! three); a chamber compliance through K at the base chamber volumes; the gas stiffness
+//! through its volume (its preload is one offset with the load cell's zero, so p0 is
+//! held); each other effect by its one parameter.
+
+use std::fmt;
+
+use nalgebra::{DMatrix, DVector};
+use numerics::least_squares::{levenberg_marquardt, LmOptions, LmStop};
+use twin::models::{FluidLaw, ModelKind, ModelParams};
+use twin::{Effect, EffectSet};
+
+use crate::conditioning::SensorSample;
+use crate::pipeline::{PipelineConfig, Processed, TwinPipeline};
+
+/// One parameter the fit may move, by its parameter-file key.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ParamKey {
+    /// `bingham.friction_force_n[k]`.
+    BinghamFriction(usize),
+    /// `bingham.damping_n_s_m[k]`.
+    BinghamDamping(usize),
+    /// `bingham.offset_n`.
+    BinghamOffset,
+    /// `two_chamber.fluid.yield_stress_pa[k]`.
+    YieldStress(usize),
+    /// `two_chamber.fluid.viscosity_pa_s[k]`.
+    Viscosity(usize),
+    /// `two_chamber.fluid.flow_index` (Herschel–Bulkley).
+    FlowIndex,
+    /// `two_chamber.load_cell_offset_n`.
+    LoadCellOffset,
+    /// `two_chamber.bulk_modulus_pa` (`fluid_compressibility`).
+    BulkModulus,
+    /// `two_chamber.gas_volume_m3` (`gas_spring`).
+    GasVolume,
+    /// `two_chamber.seal_friction_n` (`seal_friction`).
+    SealFriction,
+    /// `two_chamber.fluid_density_kg_m3` (`fluid_inertia`).
+    FluidDensity,
+    /// `two_chamber.field_time_constant_s` (`field_lag`).
+    FieldTimeConstant,
+    /// `two_chamber.heat_capacity_j_per_k` (`thermal_softening`).
+    HeatCapacity,
+}
+
+impl ParamKey {
+    /// The dotted parameter-file key.
+    pub fn key(self) -> String {
+        match self {
+            ParamKey::BinghamFriction(k) => format!("bingham.friction_force_n[{k}]"),
+            ParamKey::BinghamDamping(k) => format!("bingham.damping_n_s_m[{k}]"),
+            ParamKey::BinghamOffset => "bingham.offset_n".into(),
+            ParamKey::YieldStress(k) => format!("two_chamber.fluid.yield_stress_pa[{k}]"),
+            ParamKey::Viscosity(k) => format!("two_chamber.fluid.viscosity_pa_s[{k}]"),
+            ParamKey::FlowIndex => "two_chamber.fluid.flow_index".into(),
+            ParamKey::LoadCellOffset => "two_chamber.load_cell_offset_n".into(),
+            ParamKey::BulkModulus => "two_chamber.bulk_modulus_pa".into(),
+            ParamKey::GasVolume => "two_chamber.gas_volume_m3".into(),
+            ParamKey::SealFriction => "two_chamber.seal_friction_n".into(),
+            ParamKey::FluidDensity => "two_chamber.fluid_density_kg_m3".into(),
+            ParamKey::FieldTimeConstant => "two_chamber.field_time_constant_s".into(),
+            ParamKey::HeatCapacity => "two_chamber.heat_capacity_j_per_k".into(),
+        }
+    }
+
+    /// The value in `p`.
+    pub fn get(self, p: &ModelParams) -> f64 {
+        let t = &p.two_chamber;
+        match self {
+            ParamKey::BinghamFriction(k) => p.bingham.friction_force_n[k],
+            ParamKey::BinghamDamping(k) => p.bingham.damping_n_s_m[k],
+            ParamKey::BinghamOffset => p.bingham.offset_n,
+            ParamKey::YieldStress(k) => t.fluid.yield_stress_pa[k],
+            ParamKey::Viscosity(k) => t.fluid.viscosity_pa_s[k],
+            ParamKey::FlowIndex => t.fluid.flow_index,
+            ParamKey::LoadCellOffset => t.load_cell_offset_n,
+            ParamKey::BulkModulus => t.bulk_modulus_pa,
+            ParamKey::GasVolume => t.gas_volume_m3,
+            ParamKey::SealFriction => t.seal_friction_n,
+            ParamKey::FluidDensity => t.fluid_density_kg_m3,
+            ParamKey::FieldTimeConstant => t.field_time_constant_s,
+            ParamKey::HeatCapacity => t.heat_capacity_j_per_k,
+        }
+    }
+
+    /// Set the value in `p`.
+    pub fn set(self, p: &mut ModelParams, v: f64) {
+        let t = &mut p.two_chamber;
+        match self {
+            ParamKey::BinghamFriction(k) => p.bingham.friction_force_n[k] = v,
+            ParamKey::BinghamDamping(k) => p.bingham.damping_n_s_m[k] = v,
+            ParamKey::BinghamOffset => p.bingham.offset_n = v,
+            ParamKey::YieldStress(k) => t.fluid.yield_stress_pa[k] = v,
+            ParamKey::Viscosity(k) => t.fluid.viscosity_pa_s[k] = v,
+            ParamKey::FlowIndex => t.fluid.flow_index = v,
+            ParamKey::LoadCellOffset => t.load_cell_offset_n = v,
+            ParamKey::BulkModulus => t.bulk_modulus_pa = v,
+            ParamKey::GasVolume => t.gas_volume_m3 = v,
+            ParamKey::SealFriction => t.seal_friction_n = v,
+            ParamKey::FluidDensity => t.fluid_density_kg_m3 = v,
+            ParamKey::FieldTimeConstant => t.field_time_constant_s = v,
+            ParamKey::HeatCapacity => t.heat_capacity_j_per_k = v,
+        }
+    }
+
+    /// Physical only when positive: fitted as a logarithm.
+    fn positive(self) -> bool {
+        matches!(
+            self,
+            ParamKey::FlowIndex
+                | ParamKey::BulkModulus
+                | ParamKey::GasVolume
+                | ParamKey::SealFriction
+                | ParamKey::FluidDensity
+                | ParamKey::FieldTimeConstant
+                | ParamKey::HeatCapacity
+        )
+    }
+}
+
+impl fmt::Display for ParamKey {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.key())
+    }
+}
+
+/// The parameters a record can identify for `model` with `effects`, and what each
+/// choice means (the notes go into the fit's report). `current_levels` is the number of
+/// distinct current levels in the records (a continuously varying current counts as
+/// many).
+pub fn free_parameters(
+    model: ModelKind,
+    params: &ModelParams,
+    effects: EffectSet,
+    current_levels: usize,
+) -> Result<(Vec<ParamKey>, Vec<String>), FitError> {
+    let k = current_levels.clamp(1, 3);
+    let mut notes = Vec::new();
+    if k < 3 {
+        notes.push(format!(
+            "the records hold {current_levels} current level(s): only the first {k} \
+             coefficient(s) of each law in current are fitted, the others keep their base values"
+        ));
+    }
+    let mut keys = Vec::new();
+    match model {
+        ModelKind::Bingham => {
+            keys.extend((0..k).map(ParamKey::BinghamFriction));
+            keys.extend((0..k).map(ParamKey::BinghamDamping));
+            keys.push(ParamKey::BinghamOffset);
+        }
+        ModelKind::TwoChamber => {
+            notes.push(
+                "the geometry (bore, rod, gap, chamber volumes) is not fitted: the records \
+                 identify the yield force and the viscous coefficient as laws in current, \
+                 fitted here as τ_y(I) and μ(I) at the base geometry"
+                    .into(),
+            );
+            keys.extend((0..k).map(ParamKey::YieldStress));
+            keys.extend((0..k).map(ParamKey::Viscosity));
+            if params.two_chamber.fluid.law == FluidLaw::HerschelBulkley {
+                keys.push(ParamKey::FlowIndex);
+            }
+            keys.push(ParamKey::LoadCellOffset);
+            for e in effects.iter() {
+                keys.push(match e {
+                    Effect::FluidCompressibility => {
+                        notes.push(
+                            "fluid_compressibility: the records identify a chamber compliance \
+                             V/(K A²), fitted through K at the base chamber volumes"
+                                .into(),
+                        );
+                        ParamKey::BulkModulus
+                    }
+                    Effect::GasSpring => {
+                        notes.push(
+                            "gas_spring: the preload force −p0·Ar and the load cell's zero are \
+                             one offset; p0 keeps its base value and the stiffness κ p0 Ar²/Vg0 \
+                             is fitted through the gas volume"
+                                .into(),
+                        );
+                        ParamKey::GasVolume
+                    }
+                    Effect::SealFriction => ParamKey::SealFriction,
+                    Effect::FluidInertia => ParamKey::FluidDensity,
+                    Effect::FieldLag => ParamKey::FieldTimeConstant,
+                    Effect::ThermalSoftening => {
+                        notes.push(
+                            "thermal_softening: fitted through the heat capacity, with the \
+                             fluid's temperature coefficients and the heat loss at their base values"
+                                .into(),
+                        );
+                        ParamKey::HeatCapacity
+                    }
+                });
+            }
+        }
+        other => return Err(FitError::UnsupportedModel(other)),
+    }
+    Ok((keys, notes))
+}
+
+/// Why a fit was refused.
+#[derive(Debug, Clone, PartialEq)]
+pub enum FitError {
+    /// `mrtwin fit` calibrates `bingham` and `two-chamber`.
+    UnsupportedModel(ModelKind),
+    /// The model does not take the effects asked for.
+    Effects(String),
+    /// Too few usable samples for the parameters.
+    TooFewSamples {
+        /// Usable samples.
+        samples: usize,
+        /// Free parameters.
+        parameters: usize,
+    },
+    /// A positive parameter starts at zero or below.
+    BadStart(ParamKey, f64),
+    /// The records do not tell these parameters apart (normal equations singular).
+    NotIdentifiable(Vec<ParamKey>),
+    /// The model produced a non-finite force.
+    NonFinite(ParamKey),
+}
+
+impl fmt::Display for FitError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            FitError::UnsupportedModel(m) => write!(
+                f,
+                "model '{m}' cannot be fitted yet (mrtwin fit calibrates bingham and two-chamber)"
+            ),
+            FitError::Effects(e) => write!(f, "{e}"),
+            FitError::TooFewSamples {
+                samples,
+                parameters,
+            } => write!(
+                f,
+                "{samples} usable samples are too few for {parameters} free parameters"
+            ),
+            FitError::BadStart(k, v) => write!(
+                f,
+                "parameter '{k}' starts at {v}: it must be positive to be fitted"
+            ),
+            FitError::NotIdentifiable(keys) => {
+                let names: Vec<String> = keys.iter().map(|k| k.key()).collect();
+                write!(
+                    f,
+                    "not identifiable: the records cannot tell apart {} (hold some of them, or \
+                     record more current levels and strokes)",
+                    names.join(", ")
+                )
+            }
+            FitError::NonFinite(k) => write!(
+                f,
+                "the model gives a non-finite force near '{k}': the fit did not converge"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for FitError {}
+
+/// What to fit.
+#[derive(Debug, Clone)]
+pub struct FitProblem<'a> {
+    /// The pipeline at the start values (its estimator is switched off for the fit).
+    pub config: PipelineConfig,
+    /// Free parameters.
+    pub keys: Vec<ParamKey>,
+    /// The records, each run through its own pipeline.
+    pub records: &'a [Vec<SensorSample>],
+    /// Per record and sample: used by the fit (the others are held out).
+    pub mask: Vec<Vec<bool>>,
+}
+
+/// A fitted parameter.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FittedParam {
+    /// Which.
+    pub key: ParamKey,
+    /// Start value.
+    pub start: f64,
+    /// Fitted value.
+    pub value: f64,
+    /// Standard error (residual autocorrelation taken into account).
+    pub std_error: f64,
+}
+
+/// The result of [`fit`].
+#[derive(Debug, Clone)]
+pub struct FitOutcome {
+    /// Parameters at the optimum.
+    pub params: ModelParams,
+    /// The free parameters.
+    pub fitted: Vec<FittedParam>,
+    /// RMS residual over the fitted samples at the start \[N\].
+    pub start_rmse_n: f64,
+    /// RMS residual over the fitted samples at the optimum \[N\].
+    pub rmse_n: f64,
+    /// Fitted samples.
+    pub samples: usize,
+    /// Levenberg–Marquardt iterations.
+    pub iterations: usize,
+    /// Why the iterations stopped.
+    pub stop: LmStop,
+}
+
+/// The pipeline's predicted force at every sample of each record (NaN where the sample
+/// was dropped): exactly what a replay of `cfg` predicts.
+pub fn predict(cfg: &PipelineConfig, records: &[Vec<SensorSample>]) -> Vec<Vec<f64>> {
+    let cfg = PipelineConfig {
+        estimator: None,
+        ..cfg.clone()
+    };
+    records
+        .iter()
+        .map(|rec| {
+            let Ok(mut p) = TwinPipeline::new(cfg.clone()) else {
+                return vec![f64::NAN; rec.len()];
+            };
+            rec.iter()
+                .map(|s| match p.process(s) {
+                    Processed::Stepped(st) => st.output.force_n,
+                    Processed::Dropped(_) => f64::NAN,
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// RMS of measured − predicted over the samples where `use_sample` holds and both are
+/// finite, and how many there were.
+pub fn rms_residual(
+    records: &[Vec<SensorSample>],
+    predicted: &[Vec<f64>],
+    use_sample: impl Fn(usize, usize) -> bool,
+) -> (f64, usize) {
+    let mut sse = 0.0;
+    let mut n = 0usize;
+    for (r, (rec, pred)) in records.iter().zip(predicted).enumerate() {
+        for (j, (s, f)) in rec.iter().zip(pred).enumerate() {
+            let e = s.force_n - f;
+            if use_sample(r, j) && e.is_finite() {
+                sse += e * e;
+                n += 1;
+            }
+        }
+    }
+    ((sse / n.max(1) as f64).sqrt(), n)
+}
+
+/// Parameter transform: θ = start·e^z for positive parameters, θ = start + scale·z else.
+#[derive(Debug, Clone, Copy)]
+struct Transform {
+    start: f64,
+    scale: f64,
+    log: bool,
+}
+
+impl Transform {
+    fn new(key: ParamKey, start: f64, floor: f64) -> Result<Self, FitError> {
+        if key.positive() {
+            if !(start > 0.0 && start.is_finite()) {
+                return Err(FitError::BadStart(key, start));
+            }
+            return Ok(Self {
+                start,
+                scale: 1.0,
+                log: true,
+            });
+        }
+        Ok(Self {
+            start,
+            scale: start.abs().max(floor),
+            log: false,
+        })
+    }
+    fn value(&self, z: f64) -> f64 {
+        if self.log {
+            self.start * z.exp()
+        } else {
+            self.start + self.scale * z
+        }
+    }
+    fn derivative(&self, z: f64) -> f64 {
+        if self.log {
+            self.value(z)
+        } else {
+            self.scale
+        }
+    }
+}
+
+/// Forward-difference step in the scaled parameters.
+const FD_STEP: f64 = 1e-4;
+
+struct State {
+    z: Vec<f64>,
+    residual: Vec<f64>,
+}
+
+fn scale_floor(key: ParamKey, problem: &FitProblem<'_>) -> f64 {
+    // A coefficient that starts at zero moves on the scale of its neighbours.
+    let p = &problem.config.params;
+    let max_abs = |xs: &[f64]| xs.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let force_scale = problem
+        .records
+        .iter()
+        .flatten()
+        .map(|s| s.force_n.abs())
+        .filter(|f| f.is_finite())
+        .fold(0.0f64, f64::max)
+        .max(1.0);
+    match key {
+        ParamKey::BinghamFriction(_) => max_abs(&p.bingham.friction_force_n).max(1.0),
+        ParamKey::BinghamDamping(_) => max_abs(&p.bingham.damping_n_s_m).max(1.0),
+        ParamKey::YieldStress(_) => max_abs(&p.two_chamber.fluid.yield_stress_pa).max(1.0),
+        ParamKey::Viscosity(_) => max_abs(&p.two_chamber.fluid.viscosity_pa_s).max(1e-3),
+        ParamKey::BinghamOffset | ParamKey::LoadCellOffset => 0.01 * force_scale,
+        _ => 1.0,
+    }
+}
+
+/// Fit the free parameters of `problem` to the masked samples.
+pub fn fit(problem: &FitProblem<'_>) -> Result<FitOutcome, FitError> {
+    let base = PipelineConfig {
+        estimator: None,
+        ..problem.config.clone()
+    };
+    TwinPipeline::new(base.clone()).map_err(|e| FitError::Effects(e.to_string()))?;
+    let transforms = problem
+        .keys
+        .iter()
+        .map(|&k| Transform::new(k, k.get(&base.params), scale_floor(k, problem)))
+        .collect::<Result<Vec<_>, _>>()?;
+    let np = problem.keys.len();
+    let at = |z: &[f64]| {
+        let mut params = base.params.clone();
+        for ((k, t), zi) in problem.keys.iter().zip(&transforms).zip(z) {
+            k.set(&mut params, t.value(*zi));
+        }
+        PipelineConfig {
+            params,
+            ..base.clone()
+        }
+    };
+    let residual = |z: &[f64]| -> Vec<f64> {
+        let pred = predict(&at(z), problem.records);
+        let mut r = Vec::new();
+        for ((rec, pr), m) in problem.records.iter().zip(&pred).zip(&problem.mask) {
+            for ((s, f), use_it) in rec.iter().zip(pr).zip(m) {
+                if *use_it && s.force_n.is_finite() {
+                    // A dropped sample (NaN prediction) counts as zero residual at every
+                    // parameter value; the model's own NaN is caught below.
+                    r.push(if f.is_finite() {
+                        s.force_n - f
+                    } else {
+                        f64::NAN
+                    });
+                }
+            }
+        }
+        r
+    };
+    let z0 = vec![0.0; np];
+    let r0 = residual(&z0);
+    let usable = r0.iter().filter(|e| e.is_finite()).count();
+    if usable <= 2 * np {
+        return Err(FitError::TooFewSamples {
+            samples: usable,
+            parameters: np,
+        });
+    }
+    let valid: Vec<bool> = r0.iter().map(|e| e.is_finite()).collect();
+    let clean = |r: Vec<f64>| -> Option<Vec<f64>> {
+        let mut out = Vec::with_capacity(usable);
+        for (e, ok) in r.into_iter().zip(&valid) {
+            if *ok {
+                if !e.is_finite() {
+                    return None;
+                }
+                out.push(e);
+            }
+        }
+        Some(out)
+    };
+    let r0 = clean(r0).expect("finite at the start by construction");
+    let start_cost: f64 = r0.iter().map(|e| e * e).sum();
+    let jacobian = |st: &State| -> Result<DMatrix<f64>, FitError> {
+        let cols: Vec<Result<Vec<f64>, FitError>> = parallel_map(np, |q| {
+            let mut z = st.z.clone();
+            z[q] += FD_STEP;
+            let r = clean(residual(&z)).ok_or(FitError::NonFinite(problem.keys[q]))?;
+            Ok(r.iter()
+                .zip(&st.residual)
+                .map(|(a, b)| (a - b) / FD_STEP)
+                .collect())
+        });
+        let mut j = DMatrix::zeros(usable, np);
+        for (q, c) in cols.into_iter().enumerate() {
+            let c = c?;
+            for (i, v) in c.into_iter().enumerate() {
+                j[(i, q)] = v;
+            }
+        }
+        Ok(j)
+    };
+    let start = State {
+        z: z0,
+        residual: r0,
+    };
+    let mut last_error = None;
+    let opts = LmOptions {
+        max_iter: 30,
+        rel_tol: 1e-6,
+        step_tol: 1e-6,
+        ..LmOptions::default()
+    };
+    let outcome = levenberg_marquardt(
+        start,
+        start_cost,
+        &opts,
+        |st: &State| match jacobian(st) {
+            Ok(j) => Some(numerics::least_squares::normal_equations(&j, &st.residual)),
+            Err(e) => {
+                last_error = Some(e);
+                None
+            }
+        },
+        |st: &State, step: &DVector<f64>| {
+            let z: Vec<f64> = st.z.iter().zip(step.iter()).map(|(a, b)| a + b).collect();
+            let r = clean(residual(&z))?;
+            let cost = r.iter().map(|e| e * e).sum();
+            Some((State { z, residual: r }, cost))
+        },
+    );
+    if let (LmStop::NoLinearization, Some(e)) = (outcome.stop, last_error) {
+        return Err(e);
+    }
+    let st = &outcome.state;
+    let j = jacobian(st)?;
+    let jtj = j.transpose() * &j;
+    let std_z = standard_errors(&jtj, &st.residual, np)
+        .ok_or_else(|| FitError::NotIdentifiable(weakest(&jtj, &problem.keys)))?;
+    let params = at(&st.z).params;
+    let fitted = problem
+        .keys
+        .iter()
+        .zip(&transforms)
+        .zip(st.z.iter().zip(&std_z))
+        .map(|((&key, t), (&z, &se))| FittedParam {
+            key,
+            start: t.start,
+            value: t.value(z),
+            std_error: t.derivative(z).abs() * se,
+        })
+        .collect();
+    Ok(FitOutcome {
+        params,
+        fitted,
+        start_rmse_n: (start_cost / usable as f64).sqrt(),
+        rmse_n: (outcome.cost / usable as f64).sqrt(),
+        samples: usable,
+        iterations: outcome.iterations,
+        stop: outcome.stop,
+    })
+}
+
+/// Largest condition number of the correlation form of JᵀJ the fit accepts.
+const MAX_CONDITION: f64 = 1e12;
+
+/// Standard errors of the scaled parameters: σ² (JᵀJ)⁻¹ with σ² the residual variance,
+/// inflated for the residual's lag-1 autocorrelation. None when JᵀJ is too close to
+/// singular.
+fn standard_errors(jtj: &DMatrix<f64>, r: &[f64], np: usize) -> Option<Vec<f64>> {
+    let d: Vec<f64> = (0..np).map(|i| jtj[(i, i)].sqrt()).collect();
+    if d.iter().any(|x| x.is_nan() || *x <= 0.0) {
+        return None;
+    }
+    let corr = DMatrix::from_fn(np, np, |i, j| jtj[(i, j)] / (d[i] * d[j]));
+    let eig = corr.clone().symmetric_eigen();
+    let (lo, hi) = eig
+        .eigenvalues
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(l, h), e| (l.min(*e), h.max(*e)));
+    if lo.is_nan() || lo <= 0.0 || hi / lo > MAX_CONDITION {
+        return None;
+    }
+    let inv = corr.try_inverse()?;
+    let n = r.len();
+    let sigma2 = r.iter().map(|e| e * e).sum::<f64>() / (n - np).max(1) as f64;
+    let inflation = numerics::stats::ar1_variance_inflation(numerics::stats::autocorr(r, 1));
+    Some(
+        (0..np)
+            .map(|i| (sigma2 * inflation * inv[(i, i)]).sqrt() / d[i])
+            .collect(),
+    )
+}
+
+/// The parameters with the largest share of JᵀJ's weakest direction.
+fn weakest(jtj: &DMatrix<f64>, keys: &[ParamKey]) -> Vec<ParamKey> {
+    let np = keys.len();
+    // A parameter the records do not move at all.
+    let dead: Vec<ParamKey> = (0..np)
+        .filter(|&i| jtj[(i, i)].is_nan() || jtj[(i, i)] <= 0.0)
+        .map(|i| keys[i])
+        .collect();
+    if !dead.is_empty() {
+        return dead;
+    }
+    let d: Vec<f64> = (0..np).map(|i| jtj[(i, i)].sqrt()).collect();
+    let corr = DMatrix::from_fn(np, np, |i, j| jtj[(i, j)] / (d[i] * d[j]));
+    let eig = corr.symmetric_eigen();
+    let (imin, _) =
+        eig.eigenvalues
+            .iter()
+            .enumerate()
+            .fold(
+                (0, f64::INFINITY),
+                |(bi, bv), (i, v)| {
+                    if *v < bv {
+                        (i, *v)
+                    } else {
+                        (bi, bv)
+                    }
+                },
+            );
+    let v = eig.eigenvectors.column(imin);
+    let mut out: Vec<ParamKey> = keys
+        .iter()
+        .zip(v.iter())
+        .filter(|(_, c)| c.abs() > 0.3)
+        .map(|(k, _)| *k)
+        .collect();
+    if out.is_empty() {
+        out = keys.to_vec();
+    }
+    out
+}
+
+/// `f(0..n)` on up to as many threads as the machine has cores, in order.
+fn parallel_map<T: Send>(n: usize, f: impl Fn(usize) -> T + Sync) -> Vec<T> {
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |c| c.get())
+        .min(n.max(1));
+    if threads <= 1 {
+        return (0..n).map(&f).collect();
+    }
+    let mut out: Vec<Option<T>> = (0..n).map(|_| None).collect();
+    std::thread::scope(|s| {
+        let f = &f;
+        let handles: Vec<_> = (0..threads)
+            .map(|t| {
+                s.spawn(move || {
+                    (t..n)
+                        .step_by(threads)
+                        .map(|i| (i, f(i)))
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        for h in handles {
+            for (i, v) in h.join().expect("fit worker thread") {
+                out[i] = Some(v);
+            }
+        }
+    });
+    out.into_iter()
+        .map(|v| v.expect("every index computed"))
+        .collect()
+}
+
+/// Number of distinct current levels in the records: currents rounded to 1 % of the
+/// largest |I| (at least 5 mA), counting a level only when it holds 1 % of the samples.
+pub fn current_levels(records: &[Vec<SensorSample>]) -> usize {
+    let currents: Vec<f64> = records
+        .iter()
+        .flatten()
+        .map(|s| s.current_a)
+        .filter(|i| i.is_finite())
+        .collect();
+    let peak = currents.iter().fold(0.0f64, |m, i| m.max(i.abs()));
+    let step = (0.01 * peak).max(0.005);
+    let mut counts = std::collections::BTreeMap::<i64, usize>::new();
+    for i in &currents {
+        *counts.entry((i.abs() / step).round() as i64).or_default() += 1;
+    }
+    let min = (currents.len() / 100).max(1);
+    counts.values().filter(|c| **c >= min).count()
+}
+
+/// Held-out mask: `blocks` contiguous time blocks per record, the odd ones held out
+/// (true = fitted).
+pub fn alternate_blocks(records: &[Vec<SensorSample>], blocks: usize) -> Vec<Vec<bool>> {
+    records
+        .iter()
+        .map(|rec| {
+            let n = rec.len().max(1);
+            (0..rec.len()).map(|j| (j * blocks / n) % 2 == 0).collect()
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use twin::models::{BinghamParams, TwoChamberParams};
+
+    fn bingham_record(p: &BinghamParams, noise: f64) -> Vec<SensorSample> {
+        let mut rng = 12345u64;
+        let mut gauss = || {
+            // Sum of uniforms: a deterministic, roughly normal noise of unit variance.
+            let mut s = 0.0;
+            for _ in 0..12 {
+                rng = rng
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                s += (rng >> 11) as f64 / (1u64 << 53) as f64;
+            }
+            s - 6.0
+        };
+        let cfg = PipelineConfig {
+            model: ModelKind::Bingham,
+            params: ModelParams {
+                bingham: p.clone(),
+                ..ModelParams::default()
+            },
+            effects: EffectSet::NONE,
+            estimator: None,
+            ..PipelineConfig::default()
+        };
+        let mut model = twin::models::build(cfg.model, &cfg.params, cfg.effects).unwrap();
+        (0..3000)
+            .map(|j| {
+                let t = j as f64 * 1e-3;
+                let w = 2.0 * std::f64::consts::PI * 2.0;
+                let current_a = [0.2, 0.8, 1.5][j / 1000];
+                let input = twin::DamperInput {
+                    displacement_m: 0.01 * (w * t).sin(),
+                    velocity_m_s: 0.01 * w * (w * t).cos(),
+                    acceleration_m_s2: 0.0,
+                    current_a,
+                    ambient_temperature_c: 25.0,
+                };
+                let f = model.step(&input, if j == 0 { 0.0 } else { 1e-3 }).force_n;
+                SensorSample {
+                    time_s: t,
+                    displacement_m: input.displacement_m,
+                    velocity_m_s: input.velocity_m_s,
+                    force_n: f + noise * gauss(),
+                    current_a,
+                    temperature_c: f64::NAN,
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_bingham_twin_is_recovered_within_its_intervals_from_another_start() {
+        let truth = BinghamParams {
+            friction_force_n: [40.0, 900.0, -120.0],
+            damping_n_s_m: [300.0, 1200.0, -150.0],
+            offset_n: -35.0,
+        };
+        let recs = vec![bingham_record(&truth, 10.0)];
+        let levels = current_levels(&recs);
+        assert_eq!(levels, 3);
+        let cfg = PipelineConfig {
+            model: ModelKind::Bingham,
+            effects: EffectSet::NONE,
+            ..PipelineConfig::default()
+        };
+        let (keys, _) = free_parameters(cfg.model, &cfg.params, EffectSet::NONE, levels).unwrap();
+        let problem = FitProblem {
+            config: cfg,
+            mask: vec![vec![true; recs[0].len()]],
+            keys,
+            records: &recs,
+        };
+        let out = fit(&problem).unwrap();
+        assert!(out.rmse_n < 11.0 && out.rmse_n > 9.0, "{}", out.rmse_n);
+        assert!(out.start_rmse_n > 5.0 * out.rmse_n);
+        let truth_of = |k: ParamKey| {
+            k.get(&ModelParams {
+                bingham: truth.clone(),
+                ..ModelParams::default()
+            })
+        };
+        for p in &out.fitted {
+            let z = (p.value - truth_of(p.key)) / p.std_error;
+            assert!(
+                z.abs() < 4.0,
+                "{}: {} vs {} ± {}",
+                p.key,
+                p.value,
+                truth_of(p.key),
+                p.std_error
+            );
+        }
+    }
+
+    #[test]
+    fn two_parameters_the_record_cannot_tell_apart_are_refused_by_name() {
+        // One current level, yet three coefficients asked for: |I| and I² are one column.
+        let truth = BinghamParams::default();
+        let recs: Vec<Vec<SensorSample>> = vec![bingham_record(&truth, 5.0)
+            .into_iter()
+            .map(|mut s| {
+                s.current_a = 0.8;
+                s
+            })
+            .collect()];
+        let cfg = PipelineConfig {
+            model: ModelKind::Bingham,
+            effects: EffectSet::NONE,
+            ..PipelineConfig::default()
+        };
+        let (keys, _) = free_parameters(cfg.model, &cfg.params, EffectSet::NONE, 3).unwrap();
+        let problem = FitProblem {
+            config: cfg,
+            mask: vec![vec![true; recs[0].len()]],
+            keys,
+            records: &recs,
+        };
+        match fit(&problem) {
+            Err(FitError::NotIdentifiable(k)) => assert!(
+                !k.is_empty()
+                    && k.iter().all(|k| matches!(
+                        k,
+                        ParamKey::BinghamFriction(1 | 2) | ParamKey::BinghamDamping(1 | 2)
+                    )),
+                "{k:?}"
+            ),
+            other => panic!("expected a refusal, got {:?}", other.map(|o| o.fitted)),
+        }
+    }
+
+    #[test]
+    fn the_gas_preload_is_held_and_named_with_the_load_cell_offset() {
+        let params = ModelParams {
+            two_chamber: TwoChamberParams::default(),
+            ..ModelParams::default()
+        };
+        let effects = EffectSet::NONE.with(Effect::GasSpring);
+        let (keys, notes) = free_parameters(ModelKind::TwoChamber, &params, effects, 5).unwrap();
+        assert!(keys.contains(&ParamKey::GasVolume) && keys.contains(&ParamKey::LoadCellOffset));
+        assert!(notes.iter().any(|n| n.contains("p0 keeps its base value")));
+        assert!(matches!(
+            free_parameters(ModelKind::Spencer, &params, EffectSet::NONE, 3),
+            Err(FitError::UnsupportedModel(ModelKind::Spencer))
+        ));
+    }
+}
