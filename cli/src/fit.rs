@@ -51,6 +51,11 @@ pub struct FitArgs {
     /// Contiguous time blocks per record for the held-out check (odd ones held out).
     #[arg(long, value_name = "N", default_value_t = 8)]
     pub blocks: usize,
+    /// Parameters to hold at their base values, comma separated keys as the fit prints
+    /// them; a key without an index holds every coefficient
+    /// (`two_chamber.fluid.yield_stress_pa`).
+    #[arg(long, value_name = "KEYS", value_delimiter = ',')]
+    pub hold: Vec<String>,
 }
 
 /// What the written file holds for each node: the model, its effects and its section.
@@ -163,9 +168,28 @@ pub fn calibrate(
     config: &PipelineConfig,
     records: &[Vec<SensorSample>],
     blocks: usize,
+    hold: &[String],
 ) -> Result<Calibrated> {
     let levels = current_levels(records);
-    let (keys, notes) = free_parameters(config.model, &config.params, config.effects, levels)?;
+    let (mut keys, mut notes) =
+        free_parameters(config.model, &config.params, config.effects, levels)?;
+    for h in hold {
+        let held = |k: &node::fit::ParamKey| {
+            let key = k.key();
+            key == *h
+                || key
+                    .strip_prefix(h.as_str())
+                    .is_some_and(|r| r.starts_with('['))
+        };
+        if !keys.iter().any(held) {
+            bail!(
+                "--hold {h}: not among the free parameters ({})",
+                keys.iter().map(|k| k.key()).collect::<Vec<_>>().join(", ")
+            );
+        }
+        keys.retain(|k| !held(k));
+        notes.push(format!("{h} held at its base value (--hold)"));
+    }
     let blocks = blocks.max(2);
     let mask = alternate_blocks(records, blocks);
     let split_problem = FitProblem {
@@ -260,7 +284,7 @@ pub fn run(args: &FitArgs) -> Result<()> {
     )?;
     let config = params.pipeline_config()?;
     let records = load_records(&args.recordings)?;
-    let c = calibrate(&config, &records, args.blocks)?;
+    let c = calibrate(&config, &records, args.blocks, &args.hold)?;
     let header = format!(
         "Written by `mrtwin fit` from {}.\nModel {}, effects {}: RMS residual {:.4} N (start {:.4} N); \
          held-out {:.4} N (start {:.4} N).",

@@ -183,7 +183,7 @@ pub fn write_upgraded(
         effects,
         ..config.clone()
     };
-    let c = calibrate(&up_config, &records, 8)?;
+    let c = calibrate(&up_config, &records, 8, &[])?;
     let final_config = PipelineConfig {
         params: c.full.params.clone(),
         ..up_config

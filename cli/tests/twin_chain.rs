@@ -286,6 +286,28 @@ fn bad_files_and_unidentifiable_fits_are_refused_and_nothing_is_written() {
         "{err}"
     );
     assert!(!out.exists() && !out.with_extension("yaml.partial").exists());
+    // Holding it, as the refusal advises, the fit goes through and keeps its base value.
+    ok(
+        mrtwin(&[
+            "fit",
+            &p(&rec),
+            "--effects",
+            "field_lag",
+            "--hold",
+            "two_chamber.field_time_constant_s",
+            "--out",
+            &p(out),
+        ]),
+        "fit --hold",
+    );
+    let held = load(out);
+    assert_eq!(
+        held.two_chamber.field_time_constant_s,
+        TwinNodeParams::default().two_chamber.field_time_constant_s
+    );
+    let o = mrtwin(&["fit", &p(&rec), "--hold", "no_such_key", "--out", &p(out)]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--hold no_such_key"));
     // A twin file with a misspelt key: file, key and line.
     let bad = &dir.path("").join("bad.yaml");
     std::fs::write(

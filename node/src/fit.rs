@@ -524,7 +524,7 @@ pub fn fit(problem: &FitProblem<'_>) -> Result<FitOutcome, FitError> {
     };
     let mut last_error = None;
     let opts = LmOptions {
-        max_iter: 30,
+        max_iter: 80,
         rel_tol: 1e-6,
         step_tol: 1e-6,
         ..LmOptions::default()
