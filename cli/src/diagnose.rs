@@ -132,10 +132,10 @@ pub fn run(args: &DiagnoseArgs) -> Result<()> {
         );
     }
     let twin = match &args.params {
-        Some(p) => Some(crate::fit::base_params(Some(p), None, None)?),
+        Some(p) => Some((p, crate::fit::base_params(Some(p), None, None)?)),
         None => None,
     };
-    let base_effects = twin.as_ref().map_or_else(Vec::new, |t| {
+    let base_effects = twin.as_ref().map_or_else(Vec::new, |(_, t)| {
         t.model.effects(t.effects).iter().collect::<Vec<_>>()
     });
     let opts = Options {
@@ -157,20 +157,21 @@ pub fn run(args: &DiagnoseArgs) -> Result<()> {
         }
     }
     let md = render_markdown(&dg.report);
-    let twin_entry = match (&twin, &args.params) {
-        (Some(t), Some(p)) => Some(crate::upgrade::write_upgraded(
+    let twin_check = match &twin {
+        Some((path, t)) => Some(crate::upgrade::write_upgraded(
             t,
-            p,
+            path,
             &dg,
+            &[crate::fit::sensor_samples(&rec)],
             &args.input,
             args.write_params.as_deref(),
         )?),
-        _ => None,
+        None => None,
     };
     if let Some(path) = &args.json {
         let mut value = serde_json::to_value(&dg.report).context("cannot encode JSON")?;
-        if let Some(entry) = twin_entry.clone() {
-            value["twin"] = entry;
+        if let Some(check) = &twin_check {
+            value["twin"] = check.json.clone();
         }
         let text = serde_json::to_string_pretty(&value).context("cannot encode JSON")?;
         fs::write(path, text + "\n").with_context(|| format!("cannot write {}", path.display()))?;
@@ -202,16 +203,8 @@ pub fn run(args: &DiagnoseArgs) -> Result<()> {
         }
         None => print!("{md}"),
     }
-    if let Some(up) = twin_entry.as_ref().and_then(|t| t.get("upgraded")) {
-        println!(
-            "upgraded twin {}: replay RMS {:.2} N → {:.2} N (ratio {:.3})",
-            up["file"].as_str().unwrap_or_default(),
-            twin_entry.as_ref().map_or(f64::NAN, |t| t["replay_rmse_N"]
-                .as_f64()
-                .unwrap_or(f64::NAN)),
-            up["replay_rmse_N"].as_f64().unwrap_or(f64::NAN),
-            up["replay_ratio"].as_f64().unwrap_or(f64::NAN)
-        );
+    if let Some(line) = twin_check.and_then(|c| c.summary) {
+        println!("{line}");
     }
     Ok(())
 }

@@ -104,12 +104,16 @@ pub fn load_records(paths: &[PathBuf]) -> Result<Vec<Vec<SensorSample>>> {
             if rec.is_empty() {
                 bail!("{}: no samples", p.display());
             }
-            Ok(rec
-                .samples
-                .iter()
-                .map(SensorSample::from_recording)
-                .collect())
+            Ok(sensor_samples(&rec))
         })
+        .collect()
+}
+
+/// A recording's samples as the node sees them.
+pub fn sensor_samples(rec: &bridge::csv::Recording) -> Vec<SensorSample> {
+    rec.samples
+        .iter()
+        .map(SensorSample::from_recording)
         .collect()
 }
 

@@ -12,6 +12,7 @@ use std::path::{Path, PathBuf};
 use ::diagnose::report::Parameter;
 use ::diagnose::Diagnosis;
 use anyhow::{bail, Result};
+use node::conditioning::SensorSample;
 use node::config::TwinNodeParams;
 use node::fit::{predict, rms_residual};
 use node::pipeline::PipelineConfig;
@@ -19,7 +20,7 @@ use serde_json::{json, Value};
 use twin::models::{ModelKind, TwoChamberParams};
 use twin::{Effect, EffectSet};
 
-use crate::fit::{calibrate, load_records, write_twin_file, TwinSection};
+use crate::fit::{calibrate, write_twin_file, TwinSection};
 
 /// The SI value of an effect's single parameter in a diagnose finding.
 fn si_value(e: Effect, parameters: &std::collections::BTreeMap<String, Parameter>) -> Option<f64> {
@@ -85,19 +86,27 @@ pub fn seed_effect(
     }
 }
 
+/// What `diagnose --params` adds to its output: the JSON entry `twin`, and a line for the
+/// terminal when an upgraded twin was written.
+pub struct TwinCheck {
+    /// The `twin` entry of the diagnosis JSON.
+    pub json: Value,
+    /// "upgraded twin FILE: replay RMS … → …" (with `--write-params`).
+    pub summary: Option<String>,
+}
+
 /// Write the upgraded twin: the twin of `params` with the effects diagnose found switched
-/// on and calibrated on `input`. Returns the JSON entry `twin` of the diagnosis.
+/// on and calibrated on `records` (the recording `input`, as the node sees it).
 pub fn write_upgraded(
     params: &TwinNodeParams,
     params_path: &Path,
     dg: &Diagnosis,
+    records: &[Vec<SensorSample>],
     input: &Path,
     out: Option<&Path>,
-) -> Result<Value> {
+) -> Result<TwinCheck> {
     let config = params.pipeline_config()?;
-    let records = load_records(&[input.to_path_buf()])?;
-    let all = |_: usize, _: usize| true;
-    let (twin_rmse, _) = rms_residual(&records, &predict(&config, &records), all);
+    let (twin_rmse, _) = rms_residual(records, &predict(&config, records), |_, _| true);
     let found: Vec<(Effect, f64)> = dg
         .report
         .findings
@@ -107,6 +116,7 @@ pub fn write_upgraded(
             Some((e, si_value(e, &f.parameters)?))
         })
         .collect();
+    let added: Vec<&str> = found.iter().map(|(e, _)| e.id()).collect();
     let (b, f) = (
         dg.report.baseline.holdout_rmse_unweighted_n,
         dg.report.final_model.holdout_rmse_unweighted_n,
@@ -116,7 +126,7 @@ pub fn write_upgraded(
     // twin's residual it predicts the upgraded twin's replay.
     let explained = (b * b - f * f).max(0.0);
     let claim = (twin_rmse * twin_rmse - explained).max(0.0).sqrt() / twin_rmse;
-    let mut entry = json!({
+    let mut json = json!({
         "params": params_path.display().to_string(),
         "model": config.model.name(),
         "effects": config.effects.to_string(),
@@ -126,7 +136,17 @@ pub fn write_upgraded(
         "predicted_replay_ratio": claim,
     });
     let Some(out) = out else {
-        return Ok(entry);
+        return Ok(TwinCheck {
+            json,
+            summary: None,
+        });
+    };
+    let summary = |up_rmse: f64| {
+        Some(format!(
+            "upgraded twin {}: replay RMS {twin_rmse:.2} N → {up_rmse:.2} N (ratio {:.3})",
+            out.display(),
+            up_rmse / twin_rmse
+        ))
     };
     if found.is_empty() {
         write_twin_file(
@@ -139,24 +159,23 @@ pub fn write_upgraded(
             ),
             &TwinSection::new(config.model, config.effects, &config.params),
         )?;
-        entry["upgraded"] = json!({
+        json["upgraded"] = json!({
             "file": out.display().to_string(),
-            "added": Vec::<String>::new(),
+            "added": added,
             "replay_rmse_N": twin_rmse,
             "replay_ratio": 1.0,
         });
-        return Ok(entry);
+        return Ok(TwinCheck {
+            json,
+            summary: summary(twin_rmse),
+        });
     }
     if config.model != ModelKind::TwoChamber {
         bail!(
             "--write-params: the twin's model '{}' takes no effects; fit a two-chamber twin \
              (mrtwin fit --model two-chamber) to add {}",
             config.model,
-            found
-                .iter()
-                .map(|(e, _)| e.id())
-                .collect::<Vec<_>>()
-                .join(", ")
+            added.join(", ")
         );
     }
     let effects = found
@@ -183,12 +202,9 @@ pub fn write_upgraded(
         effects,
         ..config.clone()
     };
-    let c = calibrate(&up_config, &records, 8, &[])?;
-    let final_config = PipelineConfig {
-        params: c.full.params.clone(),
-        ..up_config
-    };
-    let (up_rmse, _) = rms_residual(&records, &predict(&final_config, &records), all);
+    let c = calibrate(&up_config, records, 8, &[])?;
+    // The full fit ran through the same pipeline on every sample: its RMS is the replay's.
+    let up_rmse = c.full.rmse_n;
     write_twin_file(
         out,
         &format!(
@@ -196,26 +212,25 @@ pub fn write_upgraded(
              calibrated there.\nReplay RMS residual {:.4} N → {:.4} N (ratio {:.3}; predicted from \
              the variance diagnose explained: {:.3}).",
             params_path.display(),
-            found
-                .iter()
-                .map(|(e, _)| e.id())
-                .collect::<Vec<_>>()
-                .join(", "),
+            added.join(", "),
             input.display(),
             twin_rmse,
             up_rmse,
             up_rmse / twin_rmse,
             claim
         ),
-        &TwinSection::new(ModelKind::TwoChamber, effects, &final_config.params),
+        &TwinSection::new(ModelKind::TwoChamber, effects, &c.full.params),
     )?;
-    entry["upgraded"] = json!({
+    json["upgraded"] = json!({
         "file": out.display().to_string(),
-        "added": found.iter().map(|(e, _)| e.id()).collect::<Vec<_>>(),
+        "added": added,
         "effects": effects.to_string(),
         "replay_rmse_N": up_rmse,
         "replay_ratio": up_rmse / twin_rmse,
         "fit": crate::fit::report_json(&c, &[PathBuf::from(input)]),
     });
-    Ok(entry)
+    Ok(TwinCheck {
+        json,
+        summary: summary(up_rmse),
+    })
 }

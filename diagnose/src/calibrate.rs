@@ -187,25 +187,7 @@ pub fn null_statistics(
         progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1);
         row
     };
-    let mut rows: Vec<(usize, Vec<f64>)> = std::thread::scope(|s| {
-        let handles: Vec<_> = (0..threads.max(1))
-            .map(|w| {
-                let one = &one;
-                s.spawn(move || {
-                    (w..cal.replicates)
-                        .step_by(threads.max(1))
-                        .map(|k| (k, one(k)))
-                        .collect::<Vec<_>>()
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| h.join().expect("replicate fit does not panic"))
-            .collect()
-    });
-    rows.sort_by_key(|x| x.0);
-    rows.into_iter().map(|x| x.1).collect()
+    numerics::parallel::map_indexed(cal.replicates, threads, one)
 }
 
 /// The calibrated evidence of a candidate from its record statistic and its null sample.

@@ -278,9 +278,6 @@ fn resolve(origins: &[Origin<'_>], path: &[Seg]) -> (String, Option<usize>) {
     }
 }
 
-#[cfg(test)]
-mod tests;
-
 /// Writes a ROS 2 parameter file: one `NODE: ros__parameters: …` section per
 /// `(node, parameters)` pair, in order, with a `# ` comment header.
 ///
@@ -311,3 +308,6 @@ pub fn params_yaml<T: serde::Serialize>(
     }
     Ok(out)
 }
+
+#[cfg(test)]
+mod tests;

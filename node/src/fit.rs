@@ -18,7 +18,10 @@
 use std::fmt;
 
 use nalgebra::{DMatrix, DVector};
-use numerics::least_squares::{levenberg_marquardt, LmOptions, LmStop};
+use numerics::least_squares::{
+    levenberg_marquardt, normal_equations, sum_of_squares, LmOptions, LmStop,
+};
+use numerics::parallel::map_indexed;
 use twin::models::{FluidLaw, ModelKind, ModelParams};
 use twin::{Effect, EffectSet};
 
@@ -416,20 +419,22 @@ fn scale_floor(key: ParamKey, problem: &FitProblem<'_>) -> f64 {
     // A coefficient that starts at zero moves on the scale of its neighbours.
     let p = &problem.config.params;
     let max_abs = |xs: &[f64]| xs.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    let force_scale = problem
-        .records
-        .iter()
-        .flatten()
-        .map(|s| s.force_n.abs())
-        .filter(|f| f.is_finite())
-        .fold(0.0f64, f64::max)
-        .max(1.0);
+    let force_scale = || {
+        problem
+            .records
+            .iter()
+            .flatten()
+            .map(|s| s.force_n.abs())
+            .filter(|f| f.is_finite())
+            .fold(0.0f64, f64::max)
+            .max(1.0)
+    };
     match key {
         ParamKey::BinghamFriction(_) => max_abs(&p.bingham.friction_force_n).max(1.0),
         ParamKey::BinghamDamping(_) => max_abs(&p.bingham.damping_n_s_m).max(1.0),
         ParamKey::YieldStress(_) => max_abs(&p.two_chamber.fluid.yield_stress_pa).max(1.0),
         ParamKey::Viscosity(_) => max_abs(&p.two_chamber.fluid.viscosity_pa_s).max(1e-3),
-        ParamKey::BinghamOffset | ParamKey::LoadCellOffset => 0.01 * force_scale,
+        ParamKey::BinghamOffset | ParamKey::LoadCellOffset => 0.01 * force_scale(),
         _ => 1.0,
     }
 }
@@ -463,13 +468,9 @@ pub fn fit(problem: &FitProblem<'_>) -> Result<FitOutcome, FitError> {
         for ((rec, pr), m) in problem.records.iter().zip(&pred).zip(&problem.mask) {
             for ((s, f), use_it) in rec.iter().zip(pr).zip(m) {
                 if *use_it && s.force_n.is_finite() {
-                    // A dropped sample (NaN prediction) counts as zero residual at every
-                    // parameter value; the model's own NaN is caught below.
-                    r.push(if f.is_finite() {
-                        s.force_n - f
-                    } else {
-                        f64::NAN
-                    });
+                    // NaN where the sample was dropped (the same samples at every
+                    // parameter value: they are left out below) or the model failed.
+                    r.push(s.force_n - f);
                 }
             }
         }
@@ -498,9 +499,10 @@ pub fn fit(problem: &FitProblem<'_>) -> Result<FitOutcome, FitError> {
         Some(out)
     };
     let r0 = clean(r0).expect("finite at the start by construction");
-    let start_cost: f64 = r0.iter().map(|e| e * e).sum();
+    let start_cost = sum_of_squares(&r0);
     let jacobian = |st: &State| -> Result<DMatrix<f64>, FitError> {
-        let cols: Vec<Result<Vec<f64>, FitError>> = parallel_map(np, |q| {
+        let threads = std::thread::available_parallelism().map_or(1, |c| c.get());
+        let cols: Vec<Result<Vec<f64>, FitError>> = map_indexed(np, threads, |q| {
             let mut z = st.z.clone();
             z[q] += FD_STEP;
             let r = clean(residual(&z)).ok_or(FitError::NonFinite(problem.keys[q]))?;
@@ -534,7 +536,7 @@ pub fn fit(problem: &FitProblem<'_>) -> Result<FitOutcome, FitError> {
         start_cost,
         &opts,
         |st: &State| match jacobian(st) {
-            Ok(j) => Some(numerics::least_squares::normal_equations(&j, &st.residual)),
+            Ok(j) => Some(normal_equations(&j, &st.residual)),
             Err(e) => {
                 last_error = Some(e);
                 None
@@ -543,7 +545,7 @@ pub fn fit(problem: &FitProblem<'_>) -> Result<FitOutcome, FitError> {
         |st: &State, step: &DVector<f64>| {
             let z: Vec<f64> = st.z.iter().zip(step.iter()).map(|(a, b)| a + b).collect();
             let r = clean(residual(&z))?;
-            let cost = r.iter().map(|e| e * e).sum();
+            let cost = sum_of_squares(&r);
             Some((State { z, residual: r }, cost))
         },
     );
@@ -553,8 +555,8 @@ pub fn fit(problem: &FitProblem<'_>) -> Result<FitOutcome, FitError> {
     let st = &outcome.state;
     let j = jacobian(st)?;
     let jtj = j.transpose() * &j;
-    let std_z = standard_errors(&jtj, &st.residual, np)
-        .ok_or_else(|| FitError::NotIdentifiable(weakest(&jtj, &problem.keys)))?;
+    let std_z =
+        standard_errors(&jtj, &st.residual, &problem.keys).map_err(FitError::NotIdentifiable)?;
     let params = at(&st.z).params;
     let fitted = problem
         .keys
@@ -582,105 +584,75 @@ pub fn fit(problem: &FitProblem<'_>) -> Result<FitOutcome, FitError> {
 /// Largest condition number of the correlation form of JᵀJ the fit accepts.
 const MAX_CONDITION: f64 = 1e12;
 
-/// Standard errors of the scaled parameters: σ² (JᵀJ)⁻¹ with σ² the residual variance,
-/// inflated for the residual's lag-1 autocorrelation. None when JᵀJ is too close to
-/// singular.
-fn standard_errors(jtj: &DMatrix<f64>, r: &[f64], np: usize) -> Option<Vec<f64>> {
-    let d: Vec<f64> = (0..np).map(|i| jtj[(i, i)].sqrt()).collect();
-    if d.iter().any(|x| x.is_nan() || *x <= 0.0) {
-        return None;
+/// JᵀJ in correlation form: its diagonal's square roots d and Dᵀ⁻¹ JᵀJ D⁻¹. Err: the
+/// parameters the records do not move at all (zero or NaN diagonal).
+fn correlation_form(
+    jtj: &DMatrix<f64>,
+    keys: &[ParamKey],
+) -> Result<(Vec<f64>, DMatrix<f64>), Vec<ParamKey>> {
+    let np = keys.len();
+    let dead: Vec<ParamKey> = (0..np)
+        .filter(|&i| jtj[(i, i)].is_nan() || jtj[(i, i)] <= 0.0)
+        .map(|i| keys[i])
+        .collect();
+    if !dead.is_empty() {
+        return Err(dead);
     }
+    let d: Vec<f64> = (0..np).map(|i| jtj[(i, i)].sqrt()).collect();
     let corr = DMatrix::from_fn(np, np, |i, j| jtj[(i, j)] / (d[i] * d[j]));
+    Ok((d, corr))
+}
+
+/// Standard errors of the scaled parameters: σ² (JᵀJ)⁻¹ with σ² the residual variance,
+/// inflated for the residual's lag-1 autocorrelation. Err: the parameters the records
+/// cannot tell apart, when JᵀJ is too close to singular ([`weakest`]).
+fn standard_errors(
+    jtj: &DMatrix<f64>,
+    r: &[f64],
+    keys: &[ParamKey],
+) -> Result<Vec<f64>, Vec<ParamKey>> {
+    let np = keys.len();
+    let (d, corr) = correlation_form(jtj, keys)?;
     let eig = corr.clone().symmetric_eigen();
     let (lo, hi) = eig
         .eigenvalues
         .iter()
         .fold((f64::INFINITY, 0.0f64), |(l, h), e| (l.min(*e), h.max(*e)));
     if lo.is_nan() || lo <= 0.0 || hi / lo > MAX_CONDITION {
-        return None;
+        return Err(weakest(&eig, keys));
     }
-    let inv = corr.try_inverse()?;
+    let inv = corr.try_inverse().ok_or_else(|| weakest(&eig, keys))?;
     let n = r.len();
-    let sigma2 = r.iter().map(|e| e * e).sum::<f64>() / (n - np).max(1) as f64;
+    let sigma2 = sum_of_squares(r) / (n - np).max(1) as f64;
     let inflation = numerics::stats::ar1_variance_inflation(numerics::stats::autocorr(r, 1));
-    Some(
-        (0..np)
-            .map(|i| (sigma2 * inflation * inv[(i, i)]).sqrt() / d[i])
-            .collect(),
-    )
+    Ok((0..np)
+        .map(|i| (sigma2 * inflation * inv[(i, i)]).sqrt() / d[i])
+        .collect())
 }
 
-/// The parameters with the largest share of JᵀJ's weakest direction.
-fn weakest(jtj: &DMatrix<f64>, keys: &[ParamKey]) -> Vec<ParamKey> {
-    let np = keys.len();
-    // A parameter the records do not move at all.
-    let dead: Vec<ParamKey> = (0..np)
-        .filter(|&i| jtj[(i, i)].is_nan() || jtj[(i, i)] <= 0.0)
-        .map(|i| keys[i])
-        .collect();
-    if !dead.is_empty() {
-        return dead;
-    }
-    let d: Vec<f64> = (0..np).map(|i| jtj[(i, i)].sqrt()).collect();
-    let corr = DMatrix::from_fn(np, np, |i, j| jtj[(i, j)] / (d[i] * d[j]));
-    let eig = corr.symmetric_eigen();
-    let (imin, _) =
-        eig.eigenvalues
-            .iter()
-            .enumerate()
-            .fold(
-                (0, f64::INFINITY),
-                |(bi, bv), (i, v)| {
-                    if *v < bv {
-                        (i, *v)
-                    } else {
-                        (bi, bv)
-                    }
-                },
-            );
-    let v = eig.eigenvectors.column(imin);
-    let mut out: Vec<ParamKey> = keys
+/// The parameters with the largest share of the weakest direction of JᵀJ (in
+/// correlation form, eigen-decomposed as `eig`).
+fn weakest(eig: &nalgebra::SymmetricEigen<f64, nalgebra::Dyn>, keys: &[ParamKey]) -> Vec<ParamKey> {
+    let imin = eig
+        .eigenvalues
         .iter()
-        .zip(v.iter())
+        .enumerate()
+        .fold(
+            (0, f64::INFINITY),
+            |(bi, bv), (i, v)| if *v < bv { (i, *v) } else { (bi, bv) },
+        )
+        .0;
+    let out: Vec<ParamKey> = keys
+        .iter()
+        .zip(eig.eigenvectors.column(imin).iter())
         .filter(|(_, c)| c.abs() > 0.3)
         .map(|(k, _)| *k)
         .collect();
     if out.is_empty() {
-        out = keys.to_vec();
+        keys.to_vec()
+    } else {
+        out
     }
-    out
-}
-
-/// `f(0..n)` on up to as many threads as the machine has cores, in order.
-fn parallel_map<T: Send>(n: usize, f: impl Fn(usize) -> T + Sync) -> Vec<T> {
-    let threads = std::thread::available_parallelism()
-        .map_or(1, |c| c.get())
-        .min(n.max(1));
-    if threads <= 1 {
-        return (0..n).map(&f).collect();
-    }
-    let mut out: Vec<Option<T>> = (0..n).map(|_| None).collect();
-    std::thread::scope(|s| {
-        let f = &f;
-        let handles: Vec<_> = (0..threads)
-            .map(|t| {
-                s.spawn(move || {
-                    (t..n)
-                        .step_by(threads)
-                        .map(|i| (i, f(i)))
-                        .collect::<Vec<_>>()
-                })
-            })
-            .collect();
-        for h in handles {
-            for (i, v) in h.join().expect("fit worker thread") {
-                out[i] = Some(v);
-            }
-        }
-    });
-    out.into_iter()
-        .map(|v| v.expect("every index computed"))
-        .collect()
 }
 
 /// Number of distinct current levels in the records: currents rounded to 1 % of the

@@ -5,11 +5,13 @@
 //! * [`linalg`]: the small dense solves and inverses, through nalgebra's LU and Cholesky
 //!   decompositions.
 //! * [`least_squares`]: the Levenberg–Marquardt loop shared by every nonlinear fit.
+//! * [`parallel`]: independent jobs on a few scoped threads, results in index order.
 //! * [`stats`]: quantiles and the median, the lag-1 autocorrelation and the AR(1)
 //!   effective sample size, normal and χ² quantiles, the Wilson interval.
 
 pub mod least_squares;
 pub mod linalg;
+pub mod parallel;
 pub mod stats;
 
 pub use nalgebra;

@@ -1,0 +1,50 @@
+//! Independent jobs on a few threads: the one parallel loop of mrtwin's fits.
+
+/// `f(0)`, …, `f(n − 1)` on up to `threads` scoped threads, returned in index order.
+/// Thread `t` takes the indices t, t + threads, … (round robin), so the jobs' results do
+/// not depend on the number of threads. With one thread (or one job) it runs inline.
+pub fn map_indexed<T: Send>(n: usize, threads: usize, f: impl Fn(usize) -> T + Sync) -> Vec<T> {
+    let threads = threads.clamp(1, n.max(1));
+    if threads == 1 {
+        return (0..n).map(&f).collect();
+    }
+    let mut out: Vec<Option<T>> = (0..n).map(|_| None).collect();
+    std::thread::scope(|s| {
+        let f = &f;
+        let handles: Vec<_> = (0..threads)
+            .map(|t| {
+                s.spawn(move || {
+                    (t..n)
+                        .step_by(threads)
+                        .map(|i| (i, f(i)))
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        for h in handles {
+            for (i, v) in h.join().expect("a parallel job panicked") {
+                out[i] = Some(v);
+            }
+        }
+    });
+    out.into_iter()
+        .map(|v| v.expect("every index computed"))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn results_come_back_in_index_order_whatever_the_thread_count() {
+        let one: Vec<u64> = map_indexed(17, 1, |i| (i as u64) * (i as u64) + 3);
+        for threads in [2, 3, 8, 40] {
+            assert_eq!(
+                map_indexed(17, threads, |i| (i as u64) * (i as u64) + 3),
+                one
+            );
+        }
+        assert!(map_indexed(0, 4, |i| i).is_empty());
+    }
+}
