@@ -11,8 +11,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use launch_config::load_params;
-use node::conditioning::SensorSample;
-use node::config::{TwinNodeParams, STAND_NODE, TWIN_NODE};
+use node::conditioning::{ConditioningConfig, SensorSample};
+use node::config::{EstimatorSection, TwinNodeParams, STAND_NODE, TWIN_NODE};
 use node::fit::{
     alternate_blocks, current_levels, fit, free_parameters, predict, rms_residual, FitOutcome,
     FitProblem,
@@ -59,7 +59,7 @@ pub struct FitArgs {
 }
 
 /// What the written file holds for each node: the model, its effects and its section.
-#[derive(Debug, Serialize)]
+#[derive(Debug, Clone, Serialize)]
 pub struct TwinSection<'a> {
     /// Model.
     pub model: ModelKind,
@@ -71,23 +71,50 @@ pub struct TwinSection<'a> {
     /// `two_chamber` parameters (model `two-chamber`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub two_chamber: Option<&'a TwoChamberParams>,
+    /// The conditioning the fit ran with (e.g. a command-voltage current channel), when it
+    /// is not the default; the twin node's section only.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub conditioning: Option<&'a ConditioningConfig>,
+    /// The estimator settings the base file gave, when they are not the default; the twin
+    /// node's section only.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub estimator: Option<EstimatorSection>,
 }
 
 impl<'a> TwinSection<'a> {
-    /// The section of `model` with `effects` and `params`.
-    pub fn new(model: ModelKind, effects: EffectSet, params: &'a ModelParams) -> Self {
+    /// The section of `model` with `effects` and `params`, and the conditioning and
+    /// estimator settings of `base` (the configuration the fit ran with).
+    pub fn new(
+        model: ModelKind,
+        effects: EffectSet,
+        params: &'a ModelParams,
+        base: &'a PipelineConfig,
+    ) -> Self {
+        let conditioning = &base.conditioning;
+        let estimator = EstimatorSection {
+            enabled: base.estimator.is_some(),
+            settings: base.estimator.clone().unwrap_or_default(),
+        };
         Self {
             model,
             effects: effects.to_string(),
             bingham: (model == ModelKind::Bingham).then_some(&params.bingham),
             two_chamber: (model == ModelKind::TwoChamber).then_some(&params.two_chamber),
+            conditioning: (*conditioning != ConditioningConfig::default()).then_some(conditioning),
+            estimator: (estimator != EstimatorSection::default()).then_some(estimator),
         }
     }
 }
 
 /// Write the twin file at `out` whole or not at all (written beside it, then renamed).
 pub fn write_twin_file(out: &Path, header: &str, section: &TwinSection<'_>) -> Result<()> {
-    let text = launch_config::params_yaml(header, &[(TWIN_NODE, section), (STAND_NODE, section)])
+    // The stand simulates the damper itself: it has no sensor conditioning.
+    let stand = TwinSection {
+        conditioning: None,
+        estimator: None,
+        ..section.clone()
+    };
+    let text = launch_config::params_yaml(header, &[(TWIN_NODE, section), (STAND_NODE, &stand)])
         .map_err(|e| anyhow::anyhow!("cannot write the parameters as YAML: {e}"))?;
     let tmp = out.with_extension("yaml.partial");
     std::fs::write(&tmp, text).with_context(|| format!("write {}", tmp.display()))?;
@@ -307,7 +334,7 @@ pub fn run(args: &FitArgs) -> Result<()> {
     write_twin_file(
         &args.out,
         &header,
-        &TwinSection::new(config.model, config.effects, &c.full.params),
+        &TwinSection::new(config.model, config.effects, &c.full.params, &config),
     )?;
     if let Some(j) = &args.json {
         let text = serde_json::to_string_pretty(&report_json(&c, &args.recordings))?;

@@ -1,5 +1,6 @@
 //! `mrtwin info`: what a recording holds — samples, duration, sample rate, gaps, current
-//! levels, force range — after the strict checks of the CSV reader (NaN, unsorted time,
+//! levels (or, for a continuously varying current, its range, percentiles and histogram),
+//! force range, and stretches where a channel is stuck at one value — after the strict checks of the CSV reader (NaN, unsorted time,
 //! missing columns and millimetres for metres are errors naming the line or column).
 //!
 //! For a bag (directory or `.mcap`): its files and metadata, then per topic the type,
@@ -145,13 +146,6 @@ fn print_recording(rec: &bridge::Recording, input: &Path) {
         .filter(|w| median_dt > 0.0 && w[1].time_s - w[0].time_s > 1.5 * median_dt)
         .map(|w| (w[0].time_s, w[1].time_s - w[0].time_s))
         .collect();
-    let mut currents: Vec<f64> = Vec::new();
-    for smp in s {
-        let level = (smp.current_a * 1000.0).round() / 1000.0;
-        if !currents.contains(&level) {
-            currents.push(level);
-        }
-    }
     let (fmin, fmax) = s
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
@@ -183,8 +177,8 @@ fn print_recording(rec: &bridge::Recording, input: &Path) {
             .map(|(t, d)| format!(" (first at {t:.4} s, {:.2} ms)", d * 1e3))
             .unwrap_or_default()
     );
-    let levels: Vec<String> = currents.iter().map(|c| format!("{c}")).collect();
-    println!("currents      {} A", levels.join(", "));
+    let currents: Vec<f64> = s.iter().map(|x| x.current_a).collect();
+    println!("currents      {}", current_summary(&currents));
     println!("displacement  {:.3} to {:.3} mm", xmin * 1e3, xmax * 1e3);
     println!("force         {fmin:.1} to {fmax:.1} N");
     println!(
@@ -203,4 +197,91 @@ fn print_recording(rec: &bridge::Recording, input: &Path) {
             "absent"
         }
     );
+    let stuck = stuck_stretches(rec, median_dt);
+    if stuck.is_empty() {
+        println!("stuck         none (no channel repeats one value for 20 samples and 20 ms)");
+    }
+    for line in stuck {
+        println!("stuck         {line}");
+    }
+}
+
+/// Most current levels listed one by one; more are summarised as a range.
+const MAX_LISTED_LEVELS: usize = 12;
+
+/// The current column in one line: its levels (to 1 mA, in order of appearance) when there
+/// are few, else a continuously varying current as its range, percentiles and a histogram.
+pub fn current_summary(currents: &[f64]) -> String {
+    let mut levels: Vec<f64> = Vec::new();
+    for c in currents {
+        let level = (c * 1000.0).round() / 1000.0;
+        if !levels.contains(&level) {
+            levels.push(level);
+            if levels.len() > MAX_LISTED_LEVELS {
+                break;
+            }
+        }
+    }
+    if levels.len() <= MAX_LISTED_LEVELS {
+        let listed: Vec<String> = levels.iter().map(|c| format!("{c}")).collect();
+        return format!("{} A", listed.join(", "));
+    }
+    let mut sorted = currents.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let q = |p: f64| numerics::stats::quantile(&sorted, p).unwrap_or(f64::NAN);
+    let (lo, hi) = (sorted[0], sorted[sorted.len() - 1]);
+    const BINS: usize = 8;
+    let mut counts = [0usize; BINS];
+    for c in &sorted {
+        let k = if hi > lo {
+            (((c - lo) / (hi - lo)) * BINS as f64) as usize
+        } else {
+            0
+        };
+        counts[k.min(BINS - 1)] += 1;
+    }
+    let histogram: Vec<String> = counts
+        .iter()
+        .map(|k| format!("{:.0}", 100.0 * *k as f64 / sorted.len() as f64))
+        .collect();
+    format!(
+        "continuous, {lo:.3} to {hi:.3} A; percentiles 5/25/50/75/95 %: {:.3} / {:.3} / {:.3} / {:.3} / {:.3} A; \
+         % of samples in {BINS} equal bins: {}",
+        q(0.05),
+        q(0.25),
+        q(0.5),
+        q(0.75),
+        q(0.95),
+        histogram.join(" ")
+    )
+}
+
+/// Stretches where the displacement, force or a recorded velocity repeats one value (a
+/// clipped or dead channel; numerics::signal), one line each.
+pub fn stuck_stretches(rec: &bridge::Recording, dt: f64) -> Vec<String> {
+    let s = &rec.samples;
+    let min_len = numerics::signal::min_stuck_len(dt, numerics::signal::MIN_STUCK_SAMPLES);
+    let mut channels: Vec<(&str, Vec<f64>)> = vec![
+        (
+            "displacement_m",
+            s.iter().map(|x| x.displacement_m).collect(),
+        ),
+        ("force_N", s.iter().map(|x| x.force_n).collect()),
+    ];
+    if !rec.velocity_derived {
+        channels.push(("velocity_m_s", s.iter().map(|x| x.velocity_m_s).collect()));
+    }
+    let mut out = Vec::new();
+    for (name, y) in channels {
+        for r in numerics::signal::constant_runs(&y, min_len) {
+            out.push(format!(
+                "{name} at {} from {:.4} s to {:.4} s ({} samples)",
+                y[r.start],
+                s[r.start].time_s,
+                s[r.end - 1].time_s,
+                r.len()
+            ));
+        }
+    }
+    out
 }

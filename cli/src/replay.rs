@@ -135,9 +135,10 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
     let pipeline = core.pipeline();
     let c = pipeline.counters();
     tracing::info!(
-        "replayed {} samples ({} stepped, {} dropped: NaN {}, duplicate {}, out of order {}; {} gaps) with {} in {:.3} s ({:.0} samples/s)",
+        "replayed {} samples ({} stepped, {} with a channel stuck at one value and not judged; {} dropped: NaN {}, duplicate {}, out of order {}; {} gaps) with {} in {:.3} s ({:.0} samples/s)",
         rec.len(),
         stepped,
+        c.stuck,
         c.non_finite + c.duplicates + c.out_of_order,
         c.non_finite,
         c.duplicates,
@@ -241,23 +242,39 @@ impl Publisher {
 
 fn csv_row(buf: &mut String, s: &SensorSample, p: &Processed, pipeline: &TwinPipeline) {
     let nan = f64::NAN;
-    let (pred, res, power, temp, est, level, dropped) = match p {
+    // A stepped row shows the conditioned sample: the coil current (a command voltage
+    // converted), and no residual where a channel is stuck (it is not judged).
+    let (current, pred, res, power, temp, est, level, dropped) = match p {
         Processed::Stepped(st) => (
+            st.sample.current_a,
             st.output.force_n,
-            st.residual_n,
+            if st.stuck.is_some() {
+                nan
+            } else {
+                st.residual_n
+            },
             st.output.dissipated_power_w,
             st.output.fluid_temperature_c,
             st.estimate,
             st.health,
             0,
         ),
-        Processed::Dropped(_) => (nan, nan, nan, nan, None, pipeline.health_level(), 1),
+        Processed::Dropped(_) => (
+            s.current_a,
+            nan,
+            nan,
+            nan,
+            nan,
+            None,
+            pipeline.health_level(),
+            1,
+        ),
     };
     let _ = writeln!(
         buf,
         "{},{},{},{},{},{},{},{},{},{},{},{},{}",
         s.time_s,
-        s.current_a,
+        current,
         s.force_n,
         pred,
         res,

@@ -157,7 +157,7 @@ pub fn write_upgraded(
                 params_path.display(),
                 input.display()
             ),
-            &TwinSection::new(config.model, config.effects, &config.params),
+            &TwinSection::new(config.model, config.effects, &config.params, &config),
         )?;
         json["upgraded"] = json!({
             "file": out.display().to_string(),
@@ -219,7 +219,7 @@ pub fn write_upgraded(
             up_rmse / twin_rmse,
             claim
         ),
-        &TwinSection::new(ModelKind::TwoChamber, effects, &c.full.params),
+        &TwinSection::new(ModelKind::TwoChamber, effects, &c.full.params, &config),
     )?;
     json["upgraded"] = json!({
         "file": out.display().to_string(),

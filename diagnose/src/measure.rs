@@ -161,41 +161,26 @@ pub struct Measured {
     pub summary: MeasurementSummary,
 }
 
-/// Shortest run of identical values reported as a flat stretch: 20 samples and 20 ms.
-fn min_flat(dt: f64) -> usize {
-    ((0.02 / dt).ceil() as usize).max(20)
-}
-
+/// The runs where one channel repeats one value (numerics::signal: 20 samples and 20 ms).
 fn flat_runs(
     t: &[f64],
     y: &[f64],
     channel: &str,
     min_len: usize,
 ) -> Vec<(usize, usize, FlatStretch)> {
-    let mut out = Vec::new();
-    let n = y.len();
-    let mut a = 0;
-    while a < n {
-        let mut b = a + 1;
-        while b < n && (y[b] - y[a]).abs() <= 1e-12 * (1.0 + y[a].abs()) {
-            b += 1;
-        }
-        if b - a >= min_len {
-            out.push((
-                a,
-                b,
-                FlatStretch {
-                    channel: channel.to_string(),
-                    start_s: t[a],
-                    end_s: t[b - 1],
-                    samples: b - a,
-                    value: y[a],
-                },
-            ));
-        }
-        a = b;
-    }
-    out
+    numerics::signal::constant_runs(y, min_len)
+        .into_iter()
+        .map(|r| {
+            let stretch = FlatStretch {
+                channel: channel.to_string(),
+                start_s: t[r.start],
+                end_s: t[r.end - 1],
+                samples: r.len(),
+                value: y[r.start],
+            };
+            (r.start, r.end, stretch)
+        })
+        .collect()
 }
 
 /// Stroke reversals: the extrema of the displacement, found with a hysteresis of 2 % of
@@ -339,7 +324,7 @@ pub fn measure(
     let ff = local_cubic(t, f, &short, &runs);
     let force_noise = noise_sigma(f, &ff);
     // Flat stretches of displacement, force and (when measured) velocity.
-    let min_len = min_flat(dt);
+    let min_len = numerics::signal::min_stuck_len(dt, numerics::signal::MIN_STUCK_SAMPLES);
     let mut flats = flat_runs(t, x, "displacement_m", min_len);
     flats.extend(flat_runs(t, f, "force_N", min_len));
     if !velocity_derived {

@@ -314,12 +314,16 @@ fn mismatch_list(
 ) -> Vec<Mismatch> {
     let s = region_stats(d, reg, r, false);
     let n = d.len() as f64;
+    // The record's systematic part can come out 0 once the noise is taken off (a residual
+    // of isolated spikes at reversals): the ratio is then taken against 1 % of the
+    // residual's mean square, not against 0 (it read 1e303 on proving-ground seed 57).
+    let structure_floor = (s.total_structure).max(0.01 * s.total_energy / n.max(1.0));
     let mut list: Vec<Mismatch> = (0..reg.names.len())
         .filter(|&q| s.count[q] as f64 >= 0.01 * n)
         .map(|q| {
             let es = s.energy[q] / s.total_energy.max(1e-300);
             let ss = s.count[q] as f64 / n;
-            let sr = s.structure[q] / s.total_structure.max(1e-300);
+            let sr = s.structure[q] / structure_floor.max(1e-300);
             Mismatch {
                 region: reg.names[q].clone(),
                 share_of_residual_energy: es,

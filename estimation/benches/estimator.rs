@@ -110,6 +110,7 @@ fn bench(c: &mut Criterion) {
                 ambient_temperature_c: 25.0,
                 estimate: None,
                 rejected: false,
+                stuck_channel: None,
                 gas_preload_pa: None,
             }))
         })
@@ -146,6 +147,7 @@ fn bench(c: &mut Criterion) {
                 ambient_temperature_c: 25.0,
                 estimate,
                 rejected: matches!(outcome, estimation::UpdateOutcome::Rejected(_)),
+                stuck_channel: None,
                 gas_preload_pa: None,
             });
             black_box(estimate)

@@ -165,8 +165,10 @@ pub struct Observation {
     pub ambient_temperature_c: f64,
     /// The yield-stress estimate at the present current, if any.
     pub estimate: Option<Tau0Estimate>,
-    /// The estimator rejected this sample.
+    /// The estimator rejected this sample (or a channel is stuck): its residual is left out.
     pub rejected: bool,
+    /// A channel stuck at one value (its CSV column name), as the conditioning found.
+    pub stuck_channel: Option<&'static str>,
     /// Estimated gas preload \[Pa\], where the model has a gas spring.
     pub gas_preload_pa: Option<f64>,
 }
@@ -247,6 +249,8 @@ struct Block {
     f_max: f64,
     sum_power: f64,
     rejected: u64,
+    /// Of them, with a stuck channel.
+    stuck: u64,
     dropouts: u64,
     /// First and last timestamp of the block.
     t_first: f64,
@@ -264,6 +268,7 @@ impl Block {
             f_max: f64::NEG_INFINITY,
             sum_power: 0.0,
             rejected: 0,
+            stuck: 0,
             dropouts: 0,
             t_first: f64::NAN,
             t_last: f64::NAN,
@@ -293,6 +298,8 @@ pub struct HealthMonitor {
     nominal_interval_s: Option<f64>,
     temperature_rise_k: f64,
     recorded_rise_k: f64,
+    /// The last channel found stuck.
+    stuck_channel: Option<&'static str>,
     last: Option<Observation>,
     tau0_smoothed: Option<Tau0Estimate>,
     gas_preload_pa: Option<f64>,
@@ -314,6 +321,7 @@ impl HealthMonitor {
             last: None,
             tau0_smoothed: None,
             gas_preload_pa: None,
+            stuck_channel: None,
             samples: 0,
         }
     }
@@ -381,6 +389,10 @@ impl HealthMonitor {
             b.t_last = t;
         }
         b.rejected += u64::from(o.rejected);
+        b.stuck += u64::from(o.stuck_channel.is_some());
+        if o.stuck_channel.is_some() {
+            self.stuck_channel = o.stuck_channel;
+        }
         b.dropouts += u64::from(dropout);
         let r = o.force_n - o.predicted_force_n;
         if r.is_finite() && !o.rejected {
@@ -431,6 +443,7 @@ impl HealthMonitor {
             t.f_max = t.f_max.max(b.f_max);
             t.sum_power += b.sum_power;
             t.rejected += b.rejected;
+            t.stuck += b.stuck;
             t.dropouts += b.dropouts;
             if t.t_first.is_nan() {
                 t.t_first = b.t_first;
@@ -605,6 +618,8 @@ impl HealthMonitor {
     fn data_quality(&self, w: &Block) -> DataQuality {
         DataQuality {
             rejected: w.rejected,
+            stuck: w.stuck,
+            stuck_channel: self.stuck_channel,
             samples: w.n,
             fraction: if w.n > 0 {
                 w.rejected as f64 / w.n as f64
@@ -766,7 +781,9 @@ impl Finding for YieldStress {
 
     fn message(&self, _: &HealthConfig) -> String {
         match *self {
-            YieldStress::NoEstimate { .. } => "no estimate at the present current yet".into(),
+            YieldStress::NoEstimate { .. } => {
+                "no estimate at the present current yet (not yet excited both ways, or not identified: σ too large)".into()
+            }
             YieldStress::Unreferenced(e) => format!(
                 "τ0 {:.1} ± {:.1} kPa at {:.2} A (no reference to compare with)",
                 e.tau0_pa / 1e3,
@@ -973,9 +990,12 @@ impl Finding for SampleRate {
     }
 }
 
-/// Data quality: samples the estimator rejected in the window.
+/// Data quality: samples the estimator rejected in the window, and of them those with a
+/// stuck channel.
 struct DataQuality {
     rejected: u64,
+    stuck: u64,
+    stuck_channel: Option<&'static str>,
     samples: u64,
     fraction: f64,
 }
@@ -988,15 +1008,23 @@ impl Finding for DataQuality {
     }
 
     fn message(&self, cfg: &HealthConfig) -> String {
-        format!(
+        let mut m = format!(
             "{} of {} samples rejected in the last {} s",
             self.rejected, self.samples, cfg.window_s
-        )
+        );
+        if let (true, Some(channel)) = (self.stuck > 0, self.stuck_channel) {
+            m.push_str(&format!(
+                " ({} with {channel} stuck at one value: clipped or dead sensor)",
+                self.stuck
+            ));
+        }
+        m
     }
 
     fn values(&self, _: &HealthConfig) -> Vec<(String, String)> {
         vec![
             kv("rejected", self.rejected.to_string()),
+            kv("stuck", self.stuck.to_string()),
             kv("samples", self.samples.to_string()),
             kv("rejected_fraction", format!("{:.6}", self.fraction)),
         ]
@@ -1063,6 +1091,7 @@ mod tests {
                     tau0_std_pa: 500.0,
                 }),
                 rejected: k > 3000 && k % 101 == 0,
+                stuck_channel: (k > 3000 && k % 202 == 0).then_some("force_N"),
                 gas_preload_pa: (k > 1000).then_some(2e6 - 100.0 * x),
             });
             let worst = m.checks().iter().map(|c| c.level).max().unwrap();

@@ -97,6 +97,9 @@ pub struct EstimatorConfig {
     pub velocity_scale_m_s: f64,
     /// Displacement scale of the stiffness regressor \[m\]. Default 0.01.
     pub displacement_scale_m: f64,
+    /// A bin's τ0 counts as identified only while its σ is at most this fraction of the
+    /// largest τ0 of the curve; others are not published. Default 0.25.
+    pub identified_max_std_ratio: f64,
 }
 
 impl Default for EstimatorConfig {
@@ -117,6 +120,7 @@ impl Default for EstimatorConfig {
             min_updates: 50,
             velocity_scale_m_s: 0.1,
             displacement_scale_m: 0.01,
+            identified_max_std_ratio: 0.25,
         }
     }
 }
@@ -149,6 +153,9 @@ pub enum RejectReason {
     Saturated,
     /// The current would need a bin beyond `max_bins`.
     TooManyBins,
+    /// A channel repeats one exact value (clipped or dead; its CSV column name), as the
+    /// caller's conditioning found.
+    Stuck(&'static str),
 }
 
 impl std::fmt::Display for RejectReason {
@@ -159,6 +166,7 @@ impl std::fmt::Display for RejectReason {
             RejectReason::Dropout => f.write_str("gap since the previous sample (dropout)"),
             RejectReason::Saturated => f.write_str("force at the sensor's saturation"),
             RejectReason::TooManyBins => f.write_str("too many current bins"),
+            RejectReason::Stuck(channel) => write!(f, "{channel} stuck at one value"),
         }
     }
 }
@@ -422,22 +430,32 @@ impl YieldEstimator {
 
     /// One sample (SI). Returns what was done with it.
     pub fn update(&mut self, s: &EstimatorSample) -> UpdateOutcome {
-        if let Err(reason) = self.check(s) {
-            self.rejected += 1;
-            if reason == RejectReason::Dropout {
-                // Motion must be seen again after the gap.
-                for b in &mut self.bins {
-                    b.last_pos_s = f64::NEG_INFINITY;
-                    b.last_neg_s = f64::NEG_INFINITY;
-                }
-            }
-            // A sample that arrived on time with bad values still marks the time: the
-            // stream resynchronises on it (a burst of bad values is not also a dropout).
-            if s.time_s.is_finite() && self.last_time_s.is_none_or(|t0| s.time_s > t0) {
-                self.last_time_s = Some(s.time_s);
-            }
-            return UpdateOutcome::Rejected(reason);
+        match self.check(s) {
+            Err(reason) => self.reject(s, reason),
+            Ok(()) => self.accept(s),
         }
+    }
+
+    /// Reject and count a sample the caller found bad (e.g. [`RejectReason::Stuck`]); it
+    /// touches no estimate, but its time is the stream's latest.
+    pub fn reject(&mut self, s: &EstimatorSample, reason: RejectReason) -> UpdateOutcome {
+        self.rejected += 1;
+        if reason == RejectReason::Dropout {
+            // Motion must be seen again after the gap.
+            for b in &mut self.bins {
+                b.last_pos_s = f64::NEG_INFINITY;
+                b.last_neg_s = f64::NEG_INFINITY;
+            }
+        }
+        // A sample that arrived on time with bad values still marks the time: the
+        // stream resynchronises on it (a burst of bad values is not also a dropout).
+        if s.time_s.is_finite() && self.last_time_s.is_none_or(|t0| s.time_s > t0) {
+            self.last_time_s = Some(s.time_s);
+        }
+        UpdateOutcome::Rejected(reason)
+    }
+
+    fn accept(&mut self, s: &EstimatorSample) -> UpdateOutcome {
         let dt = self.last_time_s.map_or(0.0, |t0| s.time_s - t0);
         self.last_time_s = Some(s.time_s);
 
@@ -508,25 +526,20 @@ impl YieldEstimator {
         b.updates >= self.cfg.min_updates
     }
 
-    /// τ0 at this current, interpolated linearly along the fitted curve between the bins
-    /// that bracket it (or from the nearest bin within half a bin width). `None` outside the
-    /// currents seen.
+    /// τ0 at this current, interpolated linearly along the physical curve ([`Self::curve`])
+    /// between the points that bracket it (or from the nearest point within half a bin
+    /// width). `None` outside the identified currents.
     pub fn at_current(&self, current_a: f64) -> Option<Tau0Estimate> {
         let i = current_a.abs();
         let half = 0.5 * self.cfg.current_bin_width_a;
-        // The ready bins just below and just above i (no allocation: this runs per sample).
-        let mut below: Option<Tau0Estimate> = None;
-        let mut above: Option<Tau0Estimate> = None;
-        for b in self.bins.iter().filter(|b| self.ready(b)) {
-            let e = b.estimate(self.force_per_pa);
-            if e.current_a <= i {
-                below = Some(e);
-            } else {
-                above = Some(e);
-                break;
-            }
-        }
-        match (below, above) {
+        let curve = self.curve();
+        let above = curve.iter().position(|e| e.current_a > i);
+        let below = match above {
+            Some(0) => None,
+            Some(k) => Some(curve[k - 1]),
+            None => curve.last().copied(),
+        };
+        match (below, above.map(|k| curve[k])) {
             (Some(a), Some(b)) => {
                 let w = (i - a.current_a) / (b.current_a - a.current_a);
                 Some(Tau0Estimate {
@@ -542,14 +555,23 @@ impl YieldEstimator {
         }
     }
 
-    /// τ0(I) over the currents seen (bins with at least `min_updates` updates), ascending
-    /// current.
-    pub fn curve(&self) -> Vec<Tau0Estimate> {
+    /// The bins' own estimates (at least `min_updates` updates), ascending current: the
+    /// regression's numbers, before [`Self::curve`] makes them physical.
+    pub fn raw_curve(&self) -> Vec<Tau0Estimate> {
         self.bins
             .iter()
             .filter(|b| self.ready(b))
             .map(|b| b.estimate(self.force_per_pa))
             .collect()
+    }
+
+    /// τ0(I) over the currents seen, made physical: bins whose σ exceeds
+    /// `identified_max_std_ratio` × the largest τ0 are left out (not identified), the rest
+    /// are made non-decreasing in |I| by weighted isotonic regression (pool adjacent
+    /// violators, weights 1/σ²: a yield stress grows with the field) and held at τ0 ≥ 0.
+    /// A pooled run of bins shares its weighted mean and σ = (Σ 1/σ²)^(−1/2).
+    pub fn curve(&self) -> Vec<Tau0Estimate> {
+        physical_curve(&self.raw_curve(), self.cfg.identified_max_std_ratio)
     }
 
     /// Force offset f0 \[N\] and its standard deviation, averaged over the ready bins with
@@ -584,6 +606,58 @@ impl YieldEstimator {
     pub fn updated_count(&self) -> u64 {
         self.updated
     }
+}
+
+/// The identified, monotone, non-negative part of a raw τ0 curve (see
+/// [`YieldEstimator::curve`]).
+pub fn physical_curve(raw: &[Tau0Estimate], max_std_ratio: f64) -> Vec<Tau0Estimate> {
+    let scale = raw
+        .iter()
+        .filter(|e| e.tau0_pa.is_finite() && e.tau0_std_pa.is_finite())
+        .map(|e| e.tau0_pa)
+        .fold(0.0f64, f64::max);
+    let kept: Vec<Tau0Estimate> = raw
+        .iter()
+        .copied()
+        .filter(|e| {
+            e.tau0_pa.is_finite()
+                && e.tau0_std_pa.is_finite()
+                && e.tau0_std_pa <= max_std_ratio * scale
+        })
+        .collect();
+    // Pool adjacent violators: blocks of (Σ w τ, Σ w, bins).
+    let mut blocks: Vec<(f64, f64, usize)> = Vec::with_capacity(kept.len());
+    for e in &kept {
+        let w = 1.0 / e.tau0_std_pa.max(1e-9 * scale.max(1.0)).powi(2);
+        blocks.push((w * e.tau0_pa, w, 1));
+        while blocks.len() >= 2 {
+            let (b, a) = (blocks[blocks.len() - 1], blocks[blocks.len() - 2]);
+            if a.0 / a.1 <= b.0 / b.1 {
+                break;
+            }
+            blocks.pop();
+            *blocks.last_mut().expect("two blocks") = (a.0 + b.0, a.1 + b.1, a.2 + b.2);
+        }
+    }
+    let mut out = Vec::with_capacity(kept.len());
+    let mut k = 0;
+    for (swt, sw, n) in blocks {
+        for e in &kept[k..k + n] {
+            // A bin that pools with none keeps its own numbers exactly.
+            let (tau0, std) = if n == 1 {
+                (e.tau0_pa, e.tau0_std_pa)
+            } else {
+                (swt / sw, sw.sqrt().recip())
+            };
+            out.push(Tau0Estimate {
+                current_a: e.current_a,
+                tau0_pa: tau0.max(0.0),
+                tau0_std_pa: std,
+            });
+        }
+        k += n;
+    }
+    out
 }
 
 /// The offline counterpart of the estimator: ordinary least squares of the same model
@@ -715,5 +789,39 @@ mod tests {
             UpdateOutcome::Rejected(RejectReason::Dropout)
         );
         assert_eq!(e.rejected_count(), 4);
+    }
+}
+
+#[cfg(test)]
+mod physical_tests {
+    use super::*;
+
+    fn e(current_a: f64, tau0_pa: f64, tau0_std_pa: f64) -> Tau0Estimate {
+        Tau0Estimate {
+            current_a,
+            tau0_pa,
+            tau0_std_pa,
+        }
+    }
+
+    #[test]
+    fn the_published_curve_is_identified_monotone_and_never_negative() {
+        let raw = [
+            e(0.0, -300.0, 100.0),   // negative: held at 0
+            e(0.5, 9000.0, 200.0),   // a violation with the next: pooled
+            e(0.6, 8000.0, 200.0),   //
+            e(1.0, 20000.0, 9000.0), // σ above 25 % of the largest τ0: not identified
+            e(1.5, 30000.0, 300.0),
+        ];
+        let c = physical_curve(&raw, 0.25);
+        let currents: Vec<f64> = c.iter().map(|x| x.current_a).collect();
+        assert_eq!(currents, vec![0.0, 0.5, 0.6, 1.5]);
+        assert_eq!(c[0].tau0_pa, 0.0);
+        assert!((c[1].tau0_pa - 8500.0).abs() < 1e-9 && c[1].tau0_pa == c[2].tau0_pa);
+        assert!((c[1].tau0_std_pa - 200.0 / 2f64.sqrt()).abs() < 1e-9);
+        assert_eq!(c[3], raw[4]);
+        assert!(c.windows(2).all(|w| w[1].tau0_pa >= w[0].tau0_pa));
+        // Nothing identified: nothing published.
+        assert!(physical_curve(&[e(0.5, -10.0, 5.0)], 0.25).is_empty());
     }
 }

@@ -292,6 +292,7 @@ fn observe(est: &mut YieldEstimator, health: &mut HealthMonitor, s: &Step) -> Up
         ambient_temperature_c: 25.0,
         estimate: est.at_current(s.current),
         rejected: matches!(outcome, UpdateOutcome::Rejected(_)),
+        stuck_channel: None,
         gas_preload_pa: None,
     });
     outcome

@@ -12,8 +12,33 @@
 //!    already integrated past it, and stepping back in time is not physics;
 //! 4. a gap longer than `max_gap_s` → accepted, but the model is re-seated at the new
 //!    sample (`gaps`): integrating a stroke across a hole would invent a motion.
+//!
+//! An accepted sample is then *conditioned*:
+//! * **stuck channels**: when the displacement, velocity or force has repeated one exact
+//!   value for `stuck_samples` samples covering 20 ms ([`numerics::signal::StuckDetector`]:
+//!   a clipped amplifier, a saturated ADC, a dead sensor), the sample is marked stuck
+//!   (`stuck`). The model still steps on the kinematics; the estimator and the residual
+//!   checks leave the sample out, and health says which channel;
+//! * **the current channel**: when the recording's current column is the driver's command
+//!   voltage (`current_channel: command_voltage`, e.g. the Dyke record), the coil current is
+//!   `I = g · max(u, 0)` through a first-order lag `τ dI/dt = g max(u, 0) − I` (exact
+//!   discrete step; `driver_gain_a_per_v` g, `driver_lag_s` τ). A unipolar current driver
+//!   does not follow a negative command. The model, the estimator and health all see this
+//!   coil current.
 
+use numerics::signal::{StuckDetector, MIN_STUCK_SAMPLES};
 use serde::{Deserialize, Serialize};
+
+/// What the recording's current column holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CurrentChannel {
+    /// The coil current in A (default).
+    #[default]
+    CoilCurrent,
+    /// The current driver's command voltage in V.
+    CommandVoltage,
+}
 
 /// Conditioning settings (parameter-file section `conditioning`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -21,11 +46,26 @@ use serde::{Deserialize, Serialize};
 pub struct ConditioningConfig {
     /// Gap after which the model is re-seated instead of integrated across \[s\].
     pub max_gap_s: f64,
+    /// What the current column holds: `coil_current` (default) or `command_voltage`.
+    pub current_channel: CurrentChannel,
+    /// Coil current per volt of command, with `command_voltage` \[A/V\]. Default 1.
+    pub driver_gain_a_per_v: f64,
+    /// Time constant of the driver and coil, with `command_voltage` \[s\]. Default 0.
+    pub driver_lag_s: f64,
+    /// A channel that repeats one value for this many samples (and 20 ms) is stuck.
+    /// Default 20.
+    pub stuck_samples: usize,
 }
 
 impl Default for ConditioningConfig {
     fn default() -> Self {
-        Self { max_gap_s: 0.1 }
+        Self {
+            max_gap_s: 0.1,
+            current_channel: CurrentChannel::CoilCurrent,
+            driver_gain_a_per_v: 1.0,
+            driver_lag_s: 0.0,
+            stuck_samples: MIN_STUCK_SAMPLES,
+        }
     }
 }
 
@@ -110,7 +150,18 @@ pub enum Dropped {
     OutOfOrder,
 }
 
-/// What to do with an accepted sample.
+/// What to do with an accepted sample, and the sample as conditioned.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Admitted {
+    /// Seat or step.
+    pub verdict: Accepted,
+    /// The sample with the coil current in `current_a`.
+    pub sample: SensorSample,
+    /// The first stuck channel (CSV column name), if any.
+    pub stuck: Option<&'static str>,
+}
+
+/// Seat or step.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Accepted {
     /// The first sample, or the first after a gap: seat the model here.
@@ -137,23 +188,50 @@ pub struct StreamCounters {
     pub out_of_order: u64,
     /// Gaps longer than `max_gap_s` (model re-seated).
     pub gaps: u64,
+    /// Accepted samples with a stuck channel.
+    pub stuck: u64,
 }
 
 /// The conditioning state machine.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct Conditioner {
     cfg: ConditioningConfig,
     last_time_s: Option<f64>,
     counters: StreamCounters,
+    /// Displacement, velocity and force.
+    stuck: [StuckDetector; 3],
+    /// Coil current behind the driver's lag \[A\] (command-voltage channel).
+    coil_current_a: f64,
 }
 
 impl Conditioner {
     /// With these settings.
     pub fn new(cfg: ConditioningConfig) -> Self {
+        let detector = StuckDetector::new(cfg.stuck_samples);
         Self {
             cfg,
             last_time_s: None,
             counters: StreamCounters::default(),
+            stuck: [detector.clone(), detector.clone(), detector],
+            coil_current_a: 0.0,
+        }
+    }
+
+    /// The coil current for the current column's value `u`, after `dt` (None: seat).
+    fn coil_current(&mut self, u: f64, dt: Option<f64>) -> f64 {
+        match self.cfg.current_channel {
+            CurrentChannel::CoilCurrent => u,
+            CurrentChannel::CommandVoltage => {
+                let target = self.cfg.driver_gain_a_per_v * u.max(0.0);
+                self.coil_current_a = match dt {
+                    Some(dt) if self.cfg.driver_lag_s > 0.0 => {
+                        let a = (-dt / self.cfg.driver_lag_s).exp();
+                        a * self.coil_current_a + (1.0 - a) * target
+                    }
+                    _ => target,
+                };
+                self.coil_current_a
+            }
         }
     }
 
@@ -167,8 +245,8 @@ impl Conditioner {
         self.last_time_s
     }
 
-    /// Judge one sample.
-    pub fn admit(&mut self, s: &SensorSample) -> Result<Accepted, Dropped> {
+    /// Judge one sample and condition it.
+    pub fn admit(&mut self, s: &SensorSample) -> Result<Admitted, Dropped> {
         self.counters.received += 1;
         let fields = [
             ("time_s", s.time_s),
@@ -198,7 +276,37 @@ impl Conditioner {
         };
         self.last_time_s = Some(s.time_s);
         self.counters.accepted += 1;
-        Ok(verdict)
+        let dt = match verdict {
+            Accepted::Seat => {
+                for d in &mut self.stuck {
+                    d.reset();
+                }
+                None
+            }
+            Accepted::Step { dt } => Some(dt),
+        };
+        let channels = [
+            ("displacement_m", s.displacement_m),
+            ("velocity_m_s", s.velocity_m_s),
+            ("force_N", s.force_n),
+        ];
+        let mut stuck = None;
+        for (d, (name, y)) in self.stuck.iter_mut().zip(channels) {
+            // A NaN force (not measured) is never stuck.
+            if d.push(s.time_s, y) && y.is_finite() && stuck.is_none() {
+                stuck = Some(name);
+            }
+        }
+        self.counters.stuck += u64::from(stuck.is_some());
+        let sample = SensorSample {
+            current_a: self.coil_current(s.current_a, dt),
+            ..*s
+        };
+        Ok(Admitted {
+            verdict,
+            sample,
+            stuck,
+        })
     }
 }
 
@@ -216,15 +324,19 @@ mod tests {
 
     #[test]
     fn stream_faults_are_sorted_and_counted() {
-        let mut c = Conditioner::new(ConditioningConfig { max_gap_s: 0.1 });
-        assert_eq!(c.admit(&at(0.0)), Ok(Accepted::Seat));
-        assert_eq!(c.admit(&at(0.001)), Ok(Accepted::Step { dt: 0.001 }));
+        let mut c = Conditioner::new(ConditioningConfig::default());
+        let verdict = |r: Result<Admitted, Dropped>| r.map(|a| a.verdict);
+        assert_eq!(verdict(c.admit(&at(0.0))), Ok(Accepted::Seat));
+        assert_eq!(
+            verdict(c.admit(&at(0.001))),
+            Ok(Accepted::Step { dt: 0.001 })
+        );
         assert_eq!(c.admit(&at(0.001)), Err(Dropped::Duplicate));
         assert_eq!(c.admit(&at(0.0005)), Err(Dropped::OutOfOrder));
         let mut nan = at(0.002);
         nan.velocity_m_s = f64::NAN;
         assert_eq!(c.admit(&nan), Err(Dropped::NonFinite("velocity_m_s")));
-        assert_eq!(c.admit(&at(0.5)), Ok(Accepted::Seat));
+        assert_eq!(verdict(c.admit(&at(0.5))), Ok(Accepted::Seat));
         let k = c.counters();
         assert_eq!(
             (
@@ -237,5 +349,63 @@ mod tests {
             ),
             (6, 3, 1, 1, 1, 1)
         );
+    }
+
+    #[test]
+    fn a_clipped_force_is_stuck_from_its_twentieth_sample_and_a_gap_restarts_the_count() {
+        let mut c = Conditioner::new(ConditioningConfig::default());
+        let mut stuck = Vec::new();
+        for k in 0..100 {
+            let s = SensorSample {
+                time_s: k as f64 * 1e-3,
+                displacement_m: 1e-3 * (k as f64 * 0.1).sin(),
+                velocity_m_s: 0.1 * (k as f64 * 0.1).cos(),
+                force_n: if k >= 50 { 4545.4545 } else { k as f64 },
+                ..at(0.0)
+            };
+            if c.admit(&s).unwrap().stuck.is_some() {
+                stuck.push(k);
+            }
+        }
+        assert_eq!(stuck, (69..100).collect::<Vec<_>>());
+        assert_eq!(c.counters().stuck, 31);
+        // After a gap the run starts again.
+        let s = SensorSample {
+            time_s: 1.0,
+            force_n: 4545.4545,
+            ..at(0.0)
+        };
+        assert_eq!(c.admit(&s).unwrap().stuck, None);
+    }
+
+    #[test]
+    fn a_command_voltage_becomes_a_lagging_coil_current_that_ignores_negative_commands() {
+        let mut c = Conditioner::new(ConditioningConfig {
+            current_channel: CurrentChannel::CommandVoltage,
+            driver_gain_a_per_v: 0.5,
+            driver_lag_s: 0.01,
+            ..Default::default()
+        });
+        let mut coil = |t: f64, u: f64| {
+            let s = SensorSample {
+                time_s: t,
+                current_a: u,
+                force_n: t,
+                ..at(0.0)
+            };
+            c.admit(&s).unwrap().sample.current_a
+        };
+        // Seated at the command's current, a negative command drives no current.
+        assert_eq!(coil(0.0, -0.4), 0.0);
+        // A 2 V step: 1 A after the lag, 1 − e⁻¹ of the way after one time constant.
+        let mut i = 0.0;
+        for k in 1..=10 {
+            i = coil(k as f64 * 1e-3, 2.0);
+        }
+        assert!((i - (1.0 - (-1.0f64).exp())).abs() < 1e-12, "{i}");
+        for k in 11..=200 {
+            i = coil(k as f64 * 1e-3, 2.0);
+        }
+        assert!((i - 1.0).abs() < 1e-6, "{i}");
     }
 }

@@ -195,6 +195,28 @@ impl TwinNodeParams {
         positive("yield_estimate_period_s", self.yield_estimate_period_s)?;
         positive("stale_after_s", self.stale_after_s)?;
         positive("conditioning.max_gap_s", self.conditioning.max_gap_s)?;
+        positive(
+            "conditioning.driver_gain_a_per_v",
+            self.conditioning.driver_gain_a_per_v,
+        )?;
+        if !(self.conditioning.driver_lag_s >= 0.0 && self.conditioning.driver_lag_s.is_finite()) {
+            return Err(InvalidParam {
+                key: "conditioning.driver_lag_s",
+                reason: format!(
+                    "must be a number >= 0, got {}",
+                    self.conditioning.driver_lag_s
+                ),
+            });
+        }
+        if self.conditioning.stuck_samples < 2 {
+            return Err(InvalidParam {
+                key: "conditioning.stuck_samples",
+                reason: format!(
+                    "must be at least 2, got {}",
+                    self.conditioning.stuck_samples
+                ),
+            });
+        }
         if self.damper.is_empty() || self.damper.contains(['/', '*', '$', '?', '#', ' ']) {
             return Err(InvalidParam {
                 key: "damper",

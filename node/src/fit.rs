@@ -322,7 +322,8 @@ pub struct FitOutcome {
 }
 
 /// The pipeline's predicted force at every sample of each record (NaN where the sample
-/// was dropped): exactly what a replay of `cfg` predicts.
+/// was dropped or a channel is stuck, so that no fit or RMS uses it): exactly what a
+/// replay of `cfg` predicts.
 pub fn predict(cfg: &PipelineConfig, records: &[Vec<SensorSample>]) -> Vec<Vec<f64>> {
     let cfg = PipelineConfig {
         estimator: None,
@@ -336,8 +337,8 @@ pub fn predict(cfg: &PipelineConfig, records: &[Vec<SensorSample>]) -> Vec<Vec<f
             };
             rec.iter()
                 .map(|s| match p.process(s) {
-                    Processed::Stepped(st) => st.output.force_n,
-                    Processed::Dropped(_) => f64::NAN,
+                    Processed::Stepped(st) if st.stuck.is_none() => st.output.force_n,
+                    Processed::Stepped(_) | Processed::Dropped(_) => f64::NAN,
                 })
                 .collect()
         })

@@ -5,7 +5,8 @@
 
 use estimation::health::{Check, HealthConfig, HealthMonitor, Level, Observation};
 use estimation::online::{
-    force_per_pa, EstimatorConfig, EstimatorSample, Tau0Estimate, UpdateOutcome, YieldEstimator,
+    force_per_pa, EstimatorConfig, EstimatorSample, RejectReason, Tau0Estimate, UpdateOutcome,
+    YieldEstimator,
 };
 use twin::models::{build, ModelKind, ModelParams, UnsupportedEffects};
 use twin::{DamperInput, DamperModel, DamperOutput, Effect, EffectSet};
@@ -50,8 +51,10 @@ impl Default for PipelineConfig {
 /// The twin's answer to one accepted sample.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TwinStep {
-    /// The sample.
+    /// The sample as conditioned (the coil current in `current_a`).
     pub sample: SensorSample,
+    /// A channel stuck at one value (its CSV column name): the residual is not judged.
+    pub stuck: Option<&'static str>,
     /// What the model returned.
     pub output: DamperOutput,
     /// measured − predicted \[N\].
@@ -207,8 +210,8 @@ impl TwinPipeline {
 
     /// Process one sample.
     pub fn process(&mut self, s: &SensorSample) -> Processed {
-        let verdict = match self.conditioner.admit(s) {
-            Ok(v) => v,
+        let admitted = match self.conditioner.admit(s) {
+            Ok(a) => a,
             Err(d) => {
                 self.health.observe(&Observation {
                     time_s: s.time_s,
@@ -220,12 +223,15 @@ impl TwinPipeline {
                     ambient_temperature_c: self.cfg.ambient_temperature_c,
                     estimate: None,
                     rejected: true,
+                    stuck_channel: None,
                     gas_preload_pa: None,
                 });
                 self.refresh_level();
                 return Processed::Dropped(d);
             }
         };
+        // From here on the conditioned sample: the coil current in `current_a`.
+        let (verdict, s) = (admitted.verdict, &admitted.sample);
         let output = match verdict {
             Accepted::Seat => {
                 let input = self.input_of(s, None);
@@ -241,13 +247,17 @@ impl TwinPipeline {
         };
         let residual_n = s.force_n - output.force_n;
         let outcome = self.estimator.as_mut().map(|e| {
-            e.update(&EstimatorSample {
+            let es = EstimatorSample {
                 time_s: s.time_s,
                 displacement_m: s.displacement_m,
                 velocity_m_s: s.velocity_m_s,
                 force_n: s.force_n,
                 current_a: s.current_a,
-            })
+            };
+            match admitted.stuck {
+                Some(channel) => e.reject(&es, RejectReason::Stuck(channel)),
+                None => e.update(&es),
+            }
         });
         let estimate = self.estimate_at(s.current_a);
         let gas_preload_pa = match (self.rod_area_m2, &self.estimator) {
@@ -264,12 +274,15 @@ impl TwinPipeline {
             fluid_temperature_c: output.fluid_temperature_c,
             ambient_temperature_c: input.ambient_temperature_c,
             estimate,
-            rejected: matches!(outcome, Some(UpdateOutcome::Rejected(_))),
+            rejected: admitted.stuck.is_some()
+                || matches!(outcome, Some(UpdateOutcome::Rejected(_))),
+            stuck_channel: admitted.stuck,
             gas_preload_pa,
         });
         self.refresh_level();
         Processed::Stepped(TwinStep {
             sample: *s,
+            stuck: admitted.stuck,
             output,
             residual_n,
             estimate,

@@ -6,12 +6,14 @@
 //!   decompositions.
 //! * [`least_squares`]: the Levenberg–Marquardt loop shared by every nonlinear fit.
 //! * [`parallel`]: independent jobs on a few scoped threads, results in index order.
+//! * [`signal`]: stuck channels (runs of one exact value), on a record and on a stream.
 //! * [`stats`]: quantiles and the median, the lag-1 autocorrelation and the AR(1)
 //!   effective sample size, normal and χ² quantiles, the Wilson interval.
 
 pub mod least_squares;
 pub mod linalg;
 pub mod parallel;
+pub mod signal;
 pub mod stats;
 
 pub use nalgebra;

@@ -1,0 +1,180 @@
+//! Real rig records as they come (issue 17): the Dyke record's continuous command-voltage
+//! "current" is summarised, its clipped stretch found and left out, and a twin fitted on
+//! the first part of the record, with the command voltage turned into a lagging coil
+//! current, replays the rest well below the force RMS with a yield stress that stays
+//! physical.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use mrtwin_tests::TempDir;
+
+fn mrtwin<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_mrtwin"))
+        .args(args)
+        .output()
+        .expect("run mrtwin")
+}
+
+fn ok(o: Output, what: &str) -> String {
+    assert!(
+        o.status.success(),
+        "{what} failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn dyke() -> PathBuf {
+    mrtwin_tests::repo_root().join("../shared/data/real/dyke-nees/ransim_u.csv")
+}
+
+fn p(path: &Path) -> String {
+    path.display().to_string()
+}
+
+/// The named column of a CSV with a header.
+fn column(path: &Path, name: &str) -> Vec<f64> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let k = header.iter().position(|h| *h == name).unwrap();
+    lines
+        .map(|l| l.split(',').nth(k).unwrap().parse().unwrap())
+        .collect()
+}
+
+fn rms(x: &[f64]) -> f64 {
+    (x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64).sqrt()
+}
+
+#[test]
+fn info_summarises_a_continuous_current_and_finds_the_clipped_force() {
+    let out = ok(mrtwin(&["info".to_string(), p(&dyke())]), "info");
+    let currents = out
+        .lines()
+        .find(|l| l.starts_with("currents"))
+        .expect("a currents line");
+    // One readable line instead of a thousand levels.
+    assert!(
+        currents.contains("continuous") && currents.len() < 200,
+        "{currents}"
+    );
+    assert!(currents.contains("-0.441 to 2.705"), "{currents}");
+    // The force is clipped at 4545.4545 N at the end of the record (twice).
+    let stuck: Vec<&str> = out.lines().filter(|l| l.starts_with("stuck")).collect();
+    assert_eq!(
+        stuck
+            .iter()
+            .filter(|l| l.contains("force_N at 4545.4545"))
+            .count(),
+        2,
+        "{out}"
+    );
+    assert!(stuck.iter().all(|l| l.contains("from 19.")), "{out}");
+}
+
+#[test]
+fn a_held_current_record_still_lists_its_levels() {
+    let dir = TempDir::new("real-levels");
+    let rec = dir.path("levels.csv");
+    let mut csv = String::from("time_s,displacement_m,velocity_m_s,force_N,current_A\n");
+    for k in 0..3000 {
+        let t = k as f64 * 1e-3;
+        let i = [0.0, 0.5, 1.0][k / 1000];
+        let x = 0.005 * (6.0 * t).sin();
+        csv.push_str(&format!(
+            "{t},{x},{},{},{i}\n",
+            0.03 * (6.0 * t).cos(),
+            100.0 * (6.0 * t).cos() + (k % 7) as f64
+        ));
+    }
+    std::fs::write(&rec, csv).unwrap();
+    let out = ok(mrtwin(&["info".to_string(), p(&rec)]), "info");
+    assert!(out.contains("currents      0, 0.5, 1 A"), "{out}");
+    assert!(out.contains("stuck         none"), "{out}");
+}
+
+#[test]
+fn a_twin_fitted_on_the_first_part_replays_the_rest_with_a_physical_yield_stress() {
+    let dir = TempDir::new("real-dyke");
+    // First 12 s to fit, the last 8 s to judge.
+    let text = std::fs::read_to_string(dyke()).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap();
+    let (mut first, mut rest) = (format!("{header}\n"), format!("{header}\n"));
+    for l in lines {
+        let t: f64 = l.split(',').next().unwrap().parse().unwrap();
+        let part = if t < 12.0 { &mut first } else { &mut rest };
+        part.push_str(l);
+        part.push('\n');
+    }
+    let (fit_rec, judge_rec) = (dir.path("first.csv"), dir.path("rest.csv"));
+    std::fs::write(&fit_rec, first).unwrap();
+    std::fs::write(&judge_rec, rest).unwrap();
+    let base = mrtwin_tests::repo_root().join("launch-config/examples/dyke-command-voltage.yaml");
+    let twin = dir.path("twin.yaml");
+    ok(
+        mrtwin(&[
+            "fit",
+            &p(&fit_rec),
+            "--params",
+            &p(&base),
+            "--effects",
+            "none",
+            "--out",
+            &p(&twin),
+        ]),
+        "fit",
+    );
+    let written = std::fs::read_to_string(&twin).unwrap();
+    assert!(
+        written.contains("current_channel: command_voltage"),
+        "{written}"
+    );
+    let out = dir.path("replay.csv");
+    ok(
+        mrtwin(&[
+            "replay",
+            &p(&judge_rec),
+            "--params",
+            &p(&twin),
+            "--out",
+            &p(&out),
+        ]),
+        "replay",
+    );
+    let force = column(&out, "force_N");
+    let residual: Vec<f64> = column(&out, "residual_N")
+        .into_iter()
+        .filter(|r| r.is_finite())
+        .collect();
+    // The clipped stretch (in this part) is not judged.
+    assert!(
+        residual.len() < force.len(),
+        "{} {}",
+        residual.len(),
+        force.len()
+    );
+    let (r, f) = (rms(&residual), rms(&force));
+    assert!(
+        r < 0.65 * f,
+        "held-out replay RMS {r:.1} N against a force RMS {f:.1} N"
+    );
+    // The coil current never goes negative, and τ0 is published as a physical number.
+    assert!(column(&out, "current_A").iter().all(|i| *i >= 0.0));
+    let tau0: Vec<f64> = column(&out, "tau0_Pa")
+        .into_iter()
+        .filter(|t| t.is_finite())
+        .collect();
+    assert!(
+        tau0.len() > force.len() / 2,
+        "{} of {}",
+        tau0.len(),
+        force.len()
+    );
+    assert!(
+        tau0.iter().all(|t| *t >= 0.0),
+        "a negative yield stress was published"
+    );
+}
