@@ -260,7 +260,6 @@ pub fn current_summary(currents: &[f64]) -> String {
 /// clipped or dead channel; numerics::signal), one line each.
 pub fn stuck_stretches(rec: &bridge::Recording, dt: f64) -> Vec<String> {
     let s = &rec.samples;
-    let min_len = numerics::signal::min_stuck_len(dt, numerics::signal::MIN_STUCK_SAMPLES);
     let mut channels: Vec<(&str, Vec<f64>)> = vec![
         (
             "displacement_m",
@@ -271,17 +270,18 @@ pub fn stuck_stretches(rec: &bridge::Recording, dt: f64) -> Vec<String> {
     if !rec.velocity_derived {
         channels.push(("velocity_m_s", s.iter().map(|x| x.velocity_m_s).collect()));
     }
-    let mut out = Vec::new();
-    for (name, y) in channels {
-        for r in numerics::signal::constant_runs(&y, min_len) {
-            out.push(format!(
-                "{name} at {} from {:.4} s to {:.4} s ({} samples)",
-                y[r.start],
+    let values: Vec<&[f64]> = channels.iter().map(|c| c.1.as_slice()).collect();
+    numerics::signal::stuck_runs(dt, &values)
+        .into_iter()
+        .map(|(k, r)| {
+            format!(
+                "{} at {} from {:.4} s to {:.4} s ({} samples)",
+                channels[k].0,
+                values[k][r.start],
                 s[r.start].time_s,
                 s[r.end - 1].time_s,
                 r.len()
-            ));
-        }
-    }
-    out
+            )
+        })
+        .collect()
 }

@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use mrtwin_tests::TempDir;
+use mrtwin_tests::{csv_column, rms_finite, succeeded, TempDir};
 
 fn mrtwin<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_mrtwin"))
@@ -16,13 +16,9 @@ fn mrtwin<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> Output {
         .expect("run mrtwin")
 }
 
+/// The stdout of a run that must succeed.
 fn ok(o: Output, what: &str) -> String {
-    assert!(
-        o.status.success(),
-        "{what} failed: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    String::from_utf8_lossy(&o.stdout).into_owned()
+    String::from_utf8_lossy(&succeeded(o, what).stdout).into_owned()
 }
 
 fn dyke() -> PathBuf {
@@ -31,21 +27,6 @@ fn dyke() -> PathBuf {
 
 fn p(path: &Path) -> String {
     path.display().to_string()
-}
-
-/// The named column of a CSV with a header.
-fn column(path: &Path, name: &str) -> Vec<f64> {
-    let text = std::fs::read_to_string(path).unwrap();
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let k = header.iter().position(|h| *h == name).unwrap();
-    lines
-        .map(|l| l.split(',').nth(k).unwrap().parse().unwrap())
-        .collect()
-}
-
-fn rms(x: &[f64]) -> f64 {
-    (x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64).sqrt()
 }
 
 #[test]
@@ -144,8 +125,8 @@ fn a_twin_fitted_on_the_first_part_replays_the_rest_with_a_physical_yield_stress
         ]),
         "replay",
     );
-    let force = column(&out, "force_N");
-    let residual: Vec<f64> = column(&out, "residual_N")
+    let force = csv_column(&out, "force_N");
+    let residual: Vec<f64> = csv_column(&out, "residual_N")
         .into_iter()
         .filter(|r| r.is_finite())
         .collect();
@@ -156,14 +137,14 @@ fn a_twin_fitted_on_the_first_part_replays_the_rest_with_a_physical_yield_stress
         residual.len(),
         force.len()
     );
-    let (r, f) = (rms(&residual), rms(&force));
+    let (r, f) = (rms_finite(&residual), rms_finite(&force));
     assert!(
         r < 0.65 * f,
         "held-out replay RMS {r:.1} N against a force RMS {f:.1} N"
     );
     // The coil current never goes negative, and τ0 is published as a physical number.
-    assert!(column(&out, "current_A").iter().all(|i| *i >= 0.0));
-    let tau0: Vec<f64> = column(&out, "tau0_Pa")
+    assert!(csv_column(&out, "current_A").iter().all(|i| *i >= 0.0));
+    let tau0: Vec<f64> = csv_column(&out, "tau0_Pa")
         .into_iter()
         .filter(|t| t.is_finite())
         .collect();

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use mrtwin_tests::TempDir;
+use mrtwin_tests::{csv_column, rms_finite, succeeded, TempDir};
 use node::config::{TwinNodeParams, TWIN_NODE};
 
 fn mrtwin<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> Output {
@@ -15,44 +15,18 @@ fn mrtwin<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> Output {
         .expect("cannot run the mrtwin binary")
 }
 
-fn ok(o: Output, what: &str) -> Output {
-    assert!(
-        o.status.success(),
-        "{what} failed:\n{}\n{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
-    o
-}
-
 fn p(path: &Path) -> String {
     path.display().to_string()
-}
-
-/// Column `name` of a CSV file.
-fn column(path: &Path, name: &str) -> Vec<f64> {
-    let text = std::fs::read_to_string(path).unwrap();
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let k = header.iter().position(|h| *h == name).unwrap();
-    lines
-        .map(|l| l.split(',').nth(k).unwrap().parse::<f64>().unwrap())
-        .collect()
-}
-
-fn rms(x: &[f64]) -> f64 {
-    let v: Vec<f64> = x.iter().copied().filter(|e| e.is_finite()).collect();
-    (v.iter().map(|e| e * e).sum::<f64>() / v.len() as f64).sqrt()
 }
 
 /// Replay RMS residual of `params` on `rec`.
 fn replay_rms(dir: &Path, rec: &Path, params: &Path, tag: &str) -> f64 {
     let out = dir.join(format!("replay-{tag}.csv"));
-    ok(
+    succeeded(
         mrtwin(&["replay", &p(rec), "--params", &p(params), "--out", &p(&out)]),
         "replay",
     );
-    rms(&column(&out, "residual_N"))
+    rms_finite(&csv_column(&out, "residual_N"))
 }
 
 struct Chain {
@@ -67,8 +41,8 @@ fn chain(dir: &Path, rec: &Path) -> Chain {
     let twin = dir.join("twin.yaml");
     let upgraded = dir.join("upgraded.yaml");
     let js = dir.join("d.json");
-    ok(mrtwin(&["fit", &p(rec), "--out", &p(&twin)]), "fit");
-    ok(
+    succeeded(mrtwin(&["fit", &p(rec), "--out", &p(&twin)]), "fit");
+    succeeded(
         mrtwin(&[
             "diagnose",
             &p(rec),
@@ -127,7 +101,7 @@ fn simulate(dir: &Path, name: &str, effects: &str, extra: &[&str], seed: u64) ->
     let o = p(&out);
     args.push(&o);
     args.extend_from_slice(extra);
-    ok(mrtwin(&args), "simulate");
+    succeeded(mrtwin(&args), "simulate");
     out
 }
 
@@ -145,7 +119,7 @@ fn on_a_record_with_nothing_missing_the_upgrade_is_the_fitted_twin_at_the_noise_
     );
     assert_eq!(c.twin_rms, c.upgraded_rms);
     // The noise of `simulate --noise 0.005`: 0.5 % of the peak |F| of the noiseless force.
-    let force = column(&rec, "force_N");
+    let force = csv_column(&rec, "force_N");
     let sigma = 0.005 * force.iter().fold(0.0f64, |m, f| m.max(f.abs()));
     assert!(
         (c.twin_rms / sigma - 1.0).abs() < 0.1,
@@ -188,7 +162,7 @@ fn a_hidden_gas_spring_reaches_the_twin_and_replay_confirms_the_claimed_gain() {
         "replay ratio {ratio} against diagnose's {claim}"
     );
     // The stand and the simulator take the upgraded file as it is.
-    ok(
+    succeeded(
         mrtwin(&[
             "simulate",
             "--model",
@@ -287,7 +261,7 @@ fn bad_files_and_unidentifiable_fits_are_refused_and_nothing_is_written() {
     );
     assert!(!out.exists() && !out.with_extension("yaml.partial").exists());
     // Holding it, as the refusal advises, the fit goes through and keeps its base value.
-    ok(
+    succeeded(
         mrtwin(&[
             "fit",
             &p(&rec),

@@ -161,28 +161,6 @@ pub struct Measured {
     pub summary: MeasurementSummary,
 }
 
-/// The runs where one channel repeats one value (numerics::signal: 20 samples and 20 ms).
-fn flat_runs(
-    t: &[f64],
-    y: &[f64],
-    channel: &str,
-    min_len: usize,
-) -> Vec<(usize, usize, FlatStretch)> {
-    numerics::signal::constant_runs(y, min_len)
-        .into_iter()
-        .map(|r| {
-            let stretch = FlatStretch {
-                channel: channel.to_string(),
-                start_s: t[r.start],
-                end_s: t[r.end - 1],
-                samples: r.len(),
-                value: y[r.start],
-            };
-            (r.start, r.end, stretch)
-        })
-        .collect()
-}
-
 /// Stroke reversals: the extrema of the displacement, found with a hysteresis of 2 % of
 /// its range (the displacement is the cleanest channel; a noisy velocity would cross zero
 /// many times at each reversal).
@@ -324,12 +302,25 @@ pub fn measure(
     let ff = local_cubic(t, f, &short, &runs);
     let force_noise = noise_sigma(f, &ff);
     // Flat stretches of displacement, force and (when measured) velocity.
-    let min_len = numerics::signal::min_stuck_len(dt, numerics::signal::MIN_STUCK_SAMPLES);
-    let mut flats = flat_runs(t, x, "displacement_m", min_len);
-    flats.extend(flat_runs(t, f, "force_N", min_len));
+    let mut channels = vec![("displacement_m", x), ("force_N", f)];
     if !velocity_derived {
-        flats.extend(flat_runs(t, v, "velocity_m_s", min_len));
+        channels.push(("velocity_m_s", v));
     }
+    let values: Vec<&[f64]> = channels.iter().map(|c| c.1).collect();
+    let flats: Vec<(usize, usize, FlatStretch)> = numerics::signal::stuck_runs(dt, &values)
+        .into_iter()
+        .map(|(k, r)| {
+            let (channel, y) = channels[k];
+            let stretch = FlatStretch {
+                channel: channel.to_string(),
+                start_s: t[r.start],
+                end_s: t[r.end - 1],
+                samples: r.len(),
+                value: y[r.start],
+            };
+            (r.start, r.end, stretch)
+        })
+        .collect();
     let mut excluded = vec![false; n];
     for (a, b, _) in &flats {
         for e in excluded

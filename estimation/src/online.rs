@@ -289,6 +289,11 @@ impl Bin {
         }
     }
 
+    /// Enough updates to report an estimate (`min_updates`).
+    fn ready(&self, cfg: &EstimatorConfig) -> bool {
+        self.updates >= cfg.min_updates
+    }
+
     fn trace(&self) -> f64 {
         (0..P).map(|i| self.p[i][i]).sum()
     }
@@ -355,6 +360,17 @@ impl Bin {
     }
 }
 
+/// The ready bins' own estimates, in the bins' (ascending current) order.
+fn ready_estimates<'a>(
+    bins: &'a [Bin],
+    cfg: &'a EstimatorConfig,
+    force_per_pa: f64,
+) -> impl Iterator<Item = Tau0Estimate> + 'a {
+    bins.iter()
+        .filter(|b| b.ready(cfg))
+        .map(move |b| b.estimate(force_per_pa))
+}
+
 /// Recursive least-squares estimator of τ0(I) with forgetting, one bin per current range.
 #[derive(Debug, Clone)]
 pub struct YieldEstimator {
@@ -370,6 +386,12 @@ pub struct YieldEstimator {
     reversal_x_m: f64,
     rejected: u64,
     updated: u64,
+    /// The physical curve ([`Self::curve`]), refreshed after every update (the only time a
+    /// bin changes), so that [`Self::at_current`], which runs per sample, reads it without
+    /// allocating; and the buffers it is rebuilt in.
+    curve: Vec<Tau0Estimate>,
+    raw: Vec<Tau0Estimate>,
+    blocks: Vec<(f64, f64, usize)>,
 }
 
 impl YieldEstimator {
@@ -387,6 +409,9 @@ impl YieldEstimator {
             reversal_x_m: f64::NAN,
             rejected: 0,
             updated: 0,
+            curve: Vec::new(),
+            raw: Vec::new(),
+            blocks: Vec::new(),
         }
     }
 
@@ -519,11 +544,24 @@ impl YieldEstimator {
             current,
         );
         self.updated += 1;
+        self.refresh_curve();
         UpdateOutcome::Updated
     }
 
+    fn refresh_curve(&mut self) {
+        self.raw.clear();
+        self.raw
+            .extend(ready_estimates(&self.bins, &self.cfg, self.force_per_pa));
+        physical_curve_into(
+            &self.raw,
+            self.cfg.identified_max_std_ratio,
+            &mut self.blocks,
+            &mut self.curve,
+        );
+    }
+
     fn ready(&self, b: &Bin) -> bool {
-        b.updates >= self.cfg.min_updates
+        b.ready(&self.cfg)
     }
 
     /// τ0 at this current, interpolated linearly along the physical curve ([`Self::curve`])
@@ -532,7 +570,7 @@ impl YieldEstimator {
     pub fn at_current(&self, current_a: f64) -> Option<Tau0Estimate> {
         let i = current_a.abs();
         let half = 0.5 * self.cfg.current_bin_width_a;
-        let curve = self.curve();
+        let curve = &self.curve;
         let above = curve.iter().position(|e| e.current_a > i);
         let below = match above {
             Some(0) => None,
@@ -558,11 +596,7 @@ impl YieldEstimator {
     /// The bins' own estimates (at least `min_updates` updates), ascending current: the
     /// regression's numbers, before [`Self::curve`] makes them physical.
     pub fn raw_curve(&self) -> Vec<Tau0Estimate> {
-        self.bins
-            .iter()
-            .filter(|b| self.ready(b))
-            .map(|b| b.estimate(self.force_per_pa))
-            .collect()
+        ready_estimates(&self.bins, &self.cfg, self.force_per_pa).collect()
     }
 
     /// τ0(I) over the currents seen, made physical: bins whose σ exceeds
@@ -571,7 +605,7 @@ impl YieldEstimator {
     /// violators, weights 1/σ²: a yield stress grows with the field) and held at τ0 ≥ 0.
     /// A pooled run of bins shares its weighted mean and σ = (Σ 1/σ²)^(−1/2).
     pub fn curve(&self) -> Vec<Tau0Estimate> {
-        physical_curve(&self.raw_curve(), self.cfg.identified_max_std_ratio)
+        self.curve.clone()
     }
 
     /// Force offset f0 \[N\] and its standard deviation, averaged over the ready bins with
@@ -611,23 +645,30 @@ impl YieldEstimator {
 /// The identified, monotone, non-negative part of a raw τ0 curve (see
 /// [`YieldEstimator::curve`]).
 pub fn physical_curve(raw: &[Tau0Estimate], max_std_ratio: f64) -> Vec<Tau0Estimate> {
+    let mut out = Vec::with_capacity(raw.len());
+    physical_curve_into(raw, max_std_ratio, &mut Vec::new(), &mut out);
+    out
+}
+
+/// [`physical_curve`] into `out`, with `blocks` as the pooling buffer (both cleared first).
+fn physical_curve_into(
+    raw: &[Tau0Estimate],
+    max_std_ratio: f64,
+    blocks: &mut Vec<(f64, f64, usize)>,
+    out: &mut Vec<Tau0Estimate>,
+) {
     let scale = raw
         .iter()
         .filter(|e| e.tau0_pa.is_finite() && e.tau0_std_pa.is_finite())
         .map(|e| e.tau0_pa)
         .fold(0.0f64, f64::max);
-    let kept: Vec<Tau0Estimate> = raw
-        .iter()
-        .copied()
-        .filter(|e| {
-            e.tau0_pa.is_finite()
-                && e.tau0_std_pa.is_finite()
-                && e.tau0_std_pa <= max_std_ratio * scale
-        })
-        .collect();
+    out.clear();
+    out.extend(raw.iter().copied().filter(|e| {
+        e.tau0_pa.is_finite() && e.tau0_std_pa.is_finite() && e.tau0_std_pa <= max_std_ratio * scale
+    }));
     // Pool adjacent violators: blocks of (Σ w τ, Σ w, bins).
-    let mut blocks: Vec<(f64, f64, usize)> = Vec::with_capacity(kept.len());
-    for e in &kept {
+    blocks.clear();
+    for e in out.iter() {
         let w = 1.0 / e.tau0_std_pa.max(1e-9 * scale.max(1.0)).powi(2);
         blocks.push((w * e.tau0_pa, w, 1));
         while blocks.len() >= 2 {
@@ -639,25 +680,18 @@ pub fn physical_curve(raw: &[Tau0Estimate], max_std_ratio: f64) -> Vec<Tau0Estim
             *blocks.last_mut().expect("two blocks") = (a.0 + b.0, a.1 + b.1, a.2 + b.2);
         }
     }
-    let mut out = Vec::with_capacity(kept.len());
     let mut k = 0;
-    for (swt, sw, n) in blocks {
-        for e in &kept[k..k + n] {
+    for &(swt, sw, n) in blocks.iter() {
+        for e in &mut out[k..k + n] {
             // A bin that pools with none keeps its own numbers exactly.
-            let (tau0, std) = if n == 1 {
-                (e.tau0_pa, e.tau0_std_pa)
-            } else {
-                (swt / sw, sw.sqrt().recip())
-            };
-            out.push(Tau0Estimate {
-                current_a: e.current_a,
-                tau0_pa: tau0.max(0.0),
-                tau0_std_pa: std,
-            });
+            if n > 1 {
+                e.tau0_pa = swt / sw;
+                e.tau0_std_pa = sw.sqrt().recip();
+            }
+            e.tau0_pa = e.tau0_pa.max(0.0);
         }
         k += n;
     }
-    out
 }
 
 /// The offline counterpart of the estimator: ordinary least squares of the same model

@@ -291,9 +291,10 @@ impl Conditioner {
             ("force_N", s.force_n),
         ];
         let mut stuck = None;
+        // Every detector sees its channel (each keeps its own run); a NaN force (not
+        // measured) never equals itself, so it never makes a run.
         for (d, (name, y)) in self.stuck.iter_mut().zip(channels) {
-            // A NaN force (not measured) is never stuck.
-            if d.push(s.time_s, y) && y.is_finite() && stuck.is_none() {
+            if d.push(s.time_s, y) && stuck.is_none() {
                 stuck = Some(name);
             }
         }

@@ -44,6 +44,18 @@ pub fn constant_runs(y: &[f64], min_len: usize) -> Vec<std::ops::Range<usize>> {
     out
 }
 
+/// The stuck runs of the channels of a record sampled every `dt`, channel by channel, as
+/// (index into `channels`, range): runs of [`MIN_STUCK_SAMPLES`] samples and
+/// [`MIN_STUCK_DURATION_S`].
+pub fn stuck_runs(dt: f64, channels: &[&[f64]]) -> Vec<(usize, std::ops::Range<usize>)> {
+    let min_len = min_stuck_len(dt, MIN_STUCK_SAMPLES);
+    channels
+        .iter()
+        .enumerate()
+        .flat_map(|(k, y)| constant_runs(y, min_len).into_iter().map(move |r| (k, r)))
+        .collect()
+}
+
 /// Streaming form of [`constant_runs`] for one channel: a sample is stuck once the channel
 /// has held its value for `min_len` samples covering 20 ms, this one included. The first
 /// samples of a run cannot be told from a coincidence and pass.
@@ -132,5 +144,16 @@ mod tests {
         );
         d.reset();
         assert!(!d.push(1.0, 5.0));
+        // A channel that is not measured (NaN) never makes a run.
+        let nan = vec![f64::NAN; 100];
+        assert!(constant_runs(&nan, 20).is_empty());
+        let mut d = StuckDetector::new(20);
+        assert!(!(0..100).any(|k| d.push(k as f64 * 1e-3, f64::NAN)));
+        // Channel by channel.
+        let flat = vec![2.0; 30];
+        assert_eq!(
+            stuck_runs(1e-3, &[&y, &flat]),
+            vec![(0, 50..80), (1, 0..30)]
+        );
     }
 }

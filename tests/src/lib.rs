@@ -5,7 +5,37 @@
 //! `CARGO_BIN_EXE_mrtwin`, so tests here could not find it reliably. They use this
 //! library (a dev-dependency of `cli`) for the Python interop peers.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::process::Output;
+
+/// `o`, once it is known to have succeeded; else a panic with `what` and its stdout and
+/// stderr.
+pub fn succeeded(o: Output, what: &str) -> Output {
+    assert!(
+        o.status.success(),
+        "{what} failed:\n{}\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    o
+}
+
+/// Column `name` of a CSV file with a header row, as numbers (NaN included).
+pub fn csv_column(path: &Path, name: &str) -> Vec<f64> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let k = header.iter().position(|h| *h == name).unwrap();
+    lines
+        .map(|l| l.split(',').nth(k).unwrap().parse::<f64>().unwrap())
+        .collect()
+}
+
+/// RMS of the finite values of `x`.
+pub fn rms_finite(x: &[f64]) -> f64 {
+    let v: Vec<f64> = x.iter().copied().filter(|e| e.is_finite()).collect();
+    (v.iter().map(|e| e * e).sum::<f64>() / v.len() as f64).sqrt()
+}
 
 /// The repository root.
 pub fn repo_root() -> PathBuf {
