@@ -268,11 +268,33 @@ def chamber2_pressure(Wrest, x, p, K, alpha, guess):
 
 
 @njit(cache=True)
-def friction_step(ftype, z, v, dt, p):
+def reversal_split(v, a, dt):
+    """Where the velocity (linear over the step, v at its centre, slope a) changes sign
+    inside the step [-dt/2, dt/2]: (fraction before the reversal, mean velocity before,
+    mean velocity after). (0, 0, 0) when it does not reverse."""
+    va = v - 0.5 * dt * a
+    vb = v + 0.5 * dt * a
+    if va * vb >= 0.0:
+        return 0.0, 0.0, 0.0
+    th = 0.5 - v / (a * dt)
+    return th, 0.5 * va, 0.5 * vb
+
+
+@njit(cache=True)
+def stribeck(v, p):
+    Fc, Fs, vs, s2 = p[32], p[33], p[34], p[37]
+    g = Fc + (Fs - Fc) * math.exp(-(v / vs) ** 2)
+    return g * math.tanh(v / (0.02 * vs)) + s2 * v
+
+
+@njit(cache=True)
+def friction_step(ftype, z, v, a, dt, p):
     Fc, Fs, vs, s0, s1, s2 = p[32], p[33], p[34], p[35], p[36], p[37]
-    if ftype == 0:  # Stribeck, static map (smoothed sign)
-        g = Fc + (Fs - Fc) * math.exp(-(v / vs) ** 2)
-        return z, g * math.tanh(v / (0.02 * vs)) + s2 * v
+    if ftype == 0:  # Stribeck, static map (smoothed sign); mean over a reversing step
+        th, va, vb = reversal_split(v, a, dt)
+        if th > 0.0:
+            return z, th * stribeck(va, p) + (1.0 - th) * stribeck(vb, p)
+        return z, stribeck(v, p)
     dx = abs(v) * dt
     sg = 1.0 if v >= 0.0 else -1.0
     if ftype == 1:  # Dahl (exponent 1), exact for constant v over dt
@@ -370,8 +392,18 @@ def simulate(x, v, a, icmd, dt, p):
         # hydraulics
         if not comp_on:
             Q = A1 * v[k]
-            dp = slit_dp(Q, law, b, h, L, tau0, mu, n_hb, ratio, m_pap, dp_guess)
-            dp_guess = dp
+            th, va, vb = reversal_split(v[k], a[k], dt)
+            if th > 0.0:
+                # the rod reverses inside this step: the step's mean force, as the
+                # continuous-time rig feeds it to the anti-alias filter (a point sample
+                # would put the yield jump on the grid, an error of first order in dt)
+                dpa = slit_dp(A1 * va, law, b, h, L, tau0, mu, n_hb, ratio, m_pap, -dp_guess)
+                dpb = slit_dp(A1 * vb, law, b, h, L, tau0, mu, n_hb, ratio, m_pap, dp_guess)
+                dp = th * dpa + (1.0 - th) * dpb
+                dp_guess = dpb
+            else:
+                dp = slit_dp(Q, law, b, h, L, tau0, mu, n_hb, ratio, m_pap, dp_guess)
+                dp_guess = dp
             if gas_on:
                 # rod leaving the cylinder (x > 0) frees Ar x: the gas expands
                 vg = Vg0 + Ar * x[k]
@@ -438,7 +470,7 @@ def simulate(x, v, a, icmd, dt, p):
         # seal friction
         ff = 0.0
         if fric_on:
-            z, ff = friction_step(ftype, z, v[k], dt, p)
+            z, ff = friction_step(ftype, z, v[k], a[k], dt, p)
         ftot = fh + ff + m_rod * a[k]
         Fh[k] = fh
         F[k] = ftot
