@@ -2,7 +2,7 @@
 //! `mcap-ros2-support` from the interop venv), through the `mrtwin` binary.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 use std::time::Duration;
 
 use bridge::bag::{BagWriter, BagWriterOptions};
@@ -14,10 +14,7 @@ use msgs::{
 use serde_json::Value;
 
 fn mrtwin<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> Output {
-    let o = Command::new(env!("CARGO_BIN_EXE_mrtwin"))
-        .args(args)
-        .output()
-        .expect("cannot run the mrtwin binary");
+    let o = mrtwin_tests::run(env!("CARGO_BIN_EXE_mrtwin"), args);
     assert!(
         o.status.success(),
         "mrtwin failed: {}",

@@ -6,16 +6,13 @@
 
 use std::fs;
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
 use mrtwin_tests::TempDir;
 
 /// Run `mrtwin` with `args`.
 fn mrtwin<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mrtwin"))
-        .args(args)
-        .output()
-        .expect("cannot run the mrtwin binary")
+    mrtwin_tests::run(env!("CARGO_BIN_EXE_mrtwin"), args)
 }
 
 fn stdout(o: &Output) -> String {

@@ -3,7 +3,7 @@
 
 use std::fs;
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
 use mrtwin_tests::TempDir;
 
@@ -12,10 +12,7 @@ use diagnose::study::{generate, Scenario, YieldLaw};
 use twin::Effect;
 
 fn mrtwin<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mrtwin"))
-        .args(args)
-        .output()
-        .expect("cannot run the mrtwin binary")
+    mrtwin_tests::run(env!("CARGO_BIN_EXE_mrtwin"), args)
 }
 
 fn stderr(o: &Output) -> String {

@@ -3,15 +3,12 @@
 
 use std::fs;
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
 use mrtwin_tests::TempDir;
 
 fn mrtwin<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mrtwin"))
-        .args(args)
-        .output()
-        .expect("cannot run the mrtwin binary")
+    mrtwin_tests::run(env!("CARGO_BIN_EXE_mrtwin"), args)
 }
 
 fn stderr(o: &Output) -> String {

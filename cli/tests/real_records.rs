@@ -5,15 +5,12 @@
 //! physical.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 use mrtwin_tests::{csv_column, rms_finite, succeeded, TempDir};
 
 fn mrtwin<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mrtwin"))
-        .args(args)
-        .output()
-        .expect("run mrtwin")
+    mrtwin_tests::run(env!("CARGO_BIN_EXE_mrtwin"), args)
 }
 
 /// The stdout of a run that must succeed.

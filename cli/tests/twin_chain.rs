@@ -3,16 +3,13 @@
 //! records and on real ones (UTFSM, Dyke), and the refusals (files, identifiability).
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 use mrtwin_tests::{csv_column, rms_finite, succeeded, TempDir};
 use node::config::{TwinNodeParams, TWIN_NODE};
 
 fn mrtwin<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mrtwin"))
-        .args(args)
-        .output()
-        .expect("cannot run the mrtwin binary")
+    mrtwin_tests::run(env!("CARGO_BIN_EXE_mrtwin"), args)
 }
 
 fn p(path: &Path) -> String {

@@ -191,18 +191,12 @@ def fine_grid_convergence(seeds=(20, 41, 57)):
     sigma_F. Bingham nulls at 5000, 2000 and 500 Hz: the yield jump at a reversal is where
     a point-sampled grid was off by 1.2-2.9 sigma_F (the step's mean force since)."""
     for seed in seeds:
-        meta, _ = generate.scenario(seed)
-        rs = generate._streams(seed)
-        geo = generate.draw_geometry(rs["geometry"])
-        fl = generate.draw_fluid(rs["fluid"], geo)
-        p = generate.base_params(geo, fl, rs["fluid"])
-        exc, t, x, v, a, icmd = generate.draw_excitation(rs["excitation"], fl, "field_lag" in meta["hidden"])
+        meta, _, fl, p, exc, t, x, _, _, icmd = generate.base_law_rig(seed)
         fs, m, fc = exc["fs_hz"], exc["oversampling"], meta["measurement"]["aa_cutoff_hz"]
-        p[P["C_th"]], p[P["G_th"]] = 1e30, 1.0
+        cs = interpolate.CubicSpline(t, x)
         out = []
         for k in (1, 4):
             tf = np.arange(len(t) * k) / (fs * m * k)
-            cs = interpolate.CubicSpline(t, x)
             F = physics.simulate(cs(tf), cs(tf, 1), cs(tf, 2), np.repeat(icmd, k), 1 / (fs * m * k), p)[0]
             out.append(generate.aa_filter(F, fs * m * k, fc, m * k))
         n = min(len(o) for o in out)

@@ -525,6 +525,20 @@ def scenario(seed):
     return meta, rec
 
 
+def base_law_rig(seed):
+    """The scenario of `seed` and its base law alone on its fine-grid excitation: no hidden
+    effect and no heating (for the floor and convergence checks). Returns
+    (meta, rec, fl, p, exc, t, x, v, a, icmd)."""
+    meta, rec = scenario(seed)
+    rs = _streams(seed)
+    geo = draw_geometry(rs["geometry"])
+    fl = draw_fluid(rs["fluid"], geo)
+    p = base_params(geo, fl, rs["fluid"])
+    exc, t, x, v, a, icmd = draw_excitation(rs["excitation"], fl, "field_lag" in meta["hidden"])
+    p[P["C_th"]], p[P["G_th"]] = 1e30, 1.0
+    return meta, rec, fl, p, exc, t, x, v, a, icmd
+
+
 def write_csv(path, rec):
     cols = list(rec)
     arr = np.column_stack([rec[c] for c in cols])

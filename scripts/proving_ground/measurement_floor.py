@@ -22,7 +22,6 @@ from scipy import signal
 import generate as g
 import physics
 
-P = g.P
 
 
 def coarse_filter(u, fc_per_fs):
@@ -38,15 +37,9 @@ def coarse_filter(u, fc_per_fs):
 
 def main(seeds):
     for seed in seeds:
-        meta, rec = g.scenario(seed)
-        rs = g._streams(seed)
-        geo = g.draw_geometry(rs["geometry"])
-        fl = g.draw_fluid(rs["fluid"], geo)
-        p = g.base_params(geo, fl, rs["fluid"])
-        exc, t, x, v, a, icmd = g.draw_excitation(rs["excitation"], fl, "field_lag" in meta["hidden"])
+        meta, rec, fl, p, exc, t, x, v, a, icmd = g.base_law_rig(seed)  # the law alone
         meas = meta["measurement"]
         fs, m, fc = exc["fs_hz"], exc["oversampling"], meas["aa_cutoff_hz"]
-        p[P["C_th"]], p[P["G_th"]] = 1e30, 1.0  # no heating: the law alone
         sig, off = meta["sigma_F_N"], meta["force_offset_N"]
         f_rec = rec["force_N"] - off
         rms = lambda y: float(np.sqrt(np.mean(y ** 2)) / sig)

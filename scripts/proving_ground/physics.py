@@ -281,15 +281,21 @@ def reversal_split(v, a, dt):
 
 
 @njit(cache=True)
+def stribeck_level(v, p):
+    """Sliding friction level g(v) = Fc + (Fs - Fc) exp(-(v/v_s)^2) (Stribeck and LuGre)."""
+    Fc, Fs, vs = p[32], p[33], p[34]
+    return Fc + (Fs - Fc) * math.exp(-(v / vs) ** 2)
+
+
+@njit(cache=True)
 def stribeck(v, p):
-    Fc, Fs, vs, s2 = p[32], p[33], p[34], p[37]
-    g = Fc + (Fs - Fc) * math.exp(-(v / vs) ** 2)
-    return g * math.tanh(v / (0.02 * vs)) + s2 * v
+    """Stribeck static map: g(v) times a smoothed sign, plus viscous friction."""
+    return stribeck_level(v, p) * math.tanh(v / (0.02 * p[34])) + p[37] * v
 
 
 @njit(cache=True)
 def friction_step(ftype, z, v, a, dt, p):
-    Fc, Fs, vs, s0, s1, s2 = p[32], p[33], p[34], p[35], p[36], p[37]
+    Fc, s0, s1, s2 = p[32], p[35], p[36], p[37]
     if ftype == 0:  # Stribeck, static map (smoothed sign); mean over a reversing step
         th, va, vb = reversal_split(v, a, dt)
         if th > 0.0:
@@ -302,7 +308,7 @@ def friction_step(ftype, z, v, a, dt, p):
         zn = zs + (z - zs) * math.exp(-s0 * dx / Fc)
         return zn, zn + s2 * v
     # LuGre, exact for constant v over dt
-    g = Fc + (Fs - Fc) * math.exp(-(v / vs) ** 2)
+    g = stribeck_level(v, p)
     zs = sg * g / s0
     zn = zs + (z - zs) * math.exp(-s0 * dx / g)
     dz = (zn - z) / dt

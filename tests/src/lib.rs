@@ -8,6 +8,14 @@
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
+/// Run the binary at `bin` (a test's `env!("CARGO_BIN_EXE_…")`) with `args`, to its end.
+pub fn run<S: AsRef<std::ffi::OsStr>>(bin: &str, args: &[S]) -> Output {
+    std::process::Command::new(bin)
+        .args(args)
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run {bin}: {e}"))
+}
+
 /// `o`, once it is known to have succeeded; else a panic with `what` and its stdout and
 /// stderr.
 pub fn succeeded(o: Output, what: &str) -> Output {
