@@ -20,6 +20,7 @@ pub mod select;
 pub mod sindy;
 pub mod stats;
 pub mod study;
+pub mod subsample;
 pub mod unexplained;
 
 pub use calibrate::Calibration;

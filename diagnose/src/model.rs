@@ -209,11 +209,69 @@ pub struct Evaluation {
 const FY_MIN: f64 = 1e-3;
 const C_MIN: f64 = 1e-3;
 
-/// Evaluate the model with parameters `theta`.
-// Several per-sample arrays are read and written with one index: a range loop is clearer.
-#[allow(clippy::needless_range_loop)]
+/// Evaluate the model with parameters `theta` at the record's samples: at the samples
+/// themselves, or, behind the fitted anti-alias filter, on the sub-sample grid
+/// ([`crate::subsample`]) and then through the filter at the grid's rate
+/// ([`crate::antialias::AntiAlias::resample`]).
 pub fn evaluate(d: &Prepared, lay: &Layout, theta: &[f64], jac: bool) -> Evaluation {
-    let n = d.len();
+    match &d.anti_alias {
+        None => evaluate_at(d, &Inputs::samples(d), lay, theta, jac),
+        Some(aa) => {
+            let g = &d.subgrid;
+            let ev = evaluate_at(d, &Inputs::grid(g), lay, theta, jac);
+            Evaluation {
+                force: aa.resample(g, &ev.force, 1),
+                jac: if jac {
+                    aa.resample(g, &ev.jac, lay.len())
+                } else {
+                    Vec::new()
+                },
+            }
+        }
+    }
+}
+
+/// The per-point inputs of the model: the record's samples or a sub-sample grid.
+struct Inputs<'a> {
+    h: &'a [f64],
+    i: &'a [f64],
+    energy_kj: &'a [f64],
+    v: &'a [f64],
+    a: &'a [f64],
+    x: &'a [f64],
+    v_sigma: &'a [f64],
+}
+
+impl<'a> Inputs<'a> {
+    fn samples(d: &'a Prepared) -> Self {
+        Inputs {
+            h: &d.h,
+            i: &d.i,
+            energy_kj: &d.energy_kj,
+            v: &d.v,
+            a: &d.a,
+            x: &d.x,
+            v_sigma: &d.v_sigma,
+        }
+    }
+    fn grid(g: &'a crate::subsample::SubGrid) -> Self {
+        Inputs {
+            h: &g.h,
+            i: &g.i,
+            energy_kj: &g.energy_kj,
+            v: &g.v,
+            a: &g.a,
+            x: &g.x,
+            v_sigma: &g.v_sigma,
+        }
+    }
+}
+
+/// The model at every point of `inp`, before any filter.
+// Several per-point arrays are read and written with one index: a range loop is clearer.
+#[allow(clippy::needless_range_loop)]
+fn evaluate_at(d: &Prepared, inp: &Inputs, lay: &Layout, theta: &[f64], jac: bool) -> Evaluation {
+    let n = inp.h.len();
     let p = lay.len();
     let nk = lay.nk;
     let mut force = vec![0.0; n];
@@ -234,7 +292,7 @@ pub fn evaluate(d: &Prepared, lay: &Layout, theta: &[f64], jac: bool) -> Evaluat
     let leak_rel = theta[ilr].max(0.0);
     let tau = ilag.map(|k| theta[k].max(0.0)).unwrap_or(0.0);
     let comp = icp.map(|k| theta[k].max(0.0)).unwrap_or(0.0);
-    let mut i_eff = d.i[0];
+    let mut i_eff = inp.i[0];
     let mut di_dtau = 0.0;
     // Compressibility state: fluid force and its sensitivities.
     let mut fl_prev = 0.0;
@@ -244,17 +302,17 @@ pub fn evaluate(d: &Prepared, lay: &Layout, theta: &[f64], jac: bool) -> Evaluat
     let mut gfy: Vec<(usize, f64)> = Vec::with_capacity(4);
     let mut gc: Vec<(usize, f64)> = Vec::with_capacity(4);
     for j in 0..n {
-        let h = d.h[j];
+        let h = inp.h[j];
         // Effective current.
         if ilag.is_some() && h > 0.0 && tau > 0.0 {
             let e = (-h / tau).exp();
             let alpha = 1.0 - e;
             let dalpha = -e * h / (tau * tau);
-            let gap = d.i[j] - i_eff;
+            let gap = inp.i[j] - i_eff;
             di_dtau = (1.0 - alpha) * di_dtau + dalpha * gap;
             i_eff += alpha * gap;
         } else {
-            i_eff = d.i[j];
+            i_eff = inp.i[j];
             di_dtau = 0.0;
         }
         let (k, lam, dlam) = knot_weights(&d.knots, i_eff);
@@ -264,7 +322,10 @@ pub fn evaluate(d: &Prepared, lay: &Layout, theta: &[f64], jac: bool) -> Evaluat
         let dfy_di = (theta[k2] - theta[k]) * dlam;
         let dc_di = (theta[nk + k2] - theta[nk + k]) * dlam;
         let (scale, beta_e) = match ith {
-            Some(b) => ((1.0 - theta[b] * d.energy_kj[j]).max(0.05), d.energy_kj[j]),
+            Some(b) => (
+                (1.0 - theta[b] * inp.energy_kj[j]).max(0.05),
+                inp.energy_kj[j],
+            ),
             None => (1.0, 0.0),
         };
         let fy = (scale * fy_raw).max(FY_MIN);
@@ -272,22 +333,11 @@ pub fn evaluate(d: &Prepared, lay: &Layout, theta: &[f64], jac: bool) -> Evaluat
         // Curvature of the force–speed law: c₂(I) v|v| / V, V the record's peak speed
         // (shear thinning c₂ < 0, thickening c₂ > 0; a Herschel–Bulkley or regularised
         // fluid is not a Bingham line at speed).
-        let q2 = d.v[j] * d.v[j].abs() / d.velocity_scale;
+        let q2 = inp.v[j] * inp.v[j].abs() / d.velocity_scale;
         let c2_raw = (1.0 - lam) * theta[icv + k] + lam * theta[icv + k2];
         let curv = scale * c2_raw * q2;
         let yv = fy / c;
-        // Behind an anti-alias filter a sample stands for the force over its interval, not
-        // at its instant: a jump inside the interval is a fraction of it. The velocity
-        // sweeps |a| h over the interval, so the law is seen through a ramp of half that
-        // width (crate::antialias).
-        let sweep = if d.anti_alias.is_some() {
-            0.5 * d.a[j].abs() * d.measurement.sample_interval_s
-        } else {
-            0.0
-        };
-        let veps =
-            (sample_leak(leak, d.v_sigma[j]).powi(2) + (leak_rel * yv).powi(2) + sweep * sweep)
-                .sqrt();
+        let veps = (sample_leak(leak, inp.v_sigma[j]).powi(2) + (leak_rel * yv).powi(2)).sqrt();
         let (dve_la, dve_lr, dve_fy, dve_c) = if veps > 0.0 {
             (
                 leak / veps,
@@ -316,7 +366,7 @@ pub fn evaluate(d: &Prepared, lay: &Layout, theta: &[f64], jac: bool) -> Evaluat
                 gc.push((l, scale * dc_di * di_dtau));
             }
         }
-        let v = d.v[j];
+        let v = inp.v[j];
         let row = if jac { j * p } else { 0 };
         // Fluid force.
         let fluid = if icp.is_some() && comp > 0.0 && h > 0.0 && j > 0 {
@@ -372,7 +422,7 @@ pub fn evaluate(d: &Prepared, lay: &Layout, theta: &[f64], jac: bool) -> Evaluat
                 jm[row + icv + k2] += scale * lam * q2;
             }
             if let Some(b) = ith {
-                jm[row + b] -= d.energy_kj[j] * c2_raw * q2;
+                jm[row + b] -= inp.energy_kj[j] * c2_raw * q2;
             }
             if let Some(l) = ilag {
                 jm[row + l] += scale * (theta[icv + k2] - theta[icv + k]) * dlam * di_dtau * q2;
@@ -386,24 +436,18 @@ pub fn evaluate(d: &Prepared, lay: &Layout, theta: &[f64], jac: bool) -> Evaluat
             }
         }
         if let Some(q) = igas {
-            total += theta[q] * d.x[j];
+            total += theta[q] * inp.x[j];
             if jac {
-                jm[row + q] = d.x[j];
+                jm[row + q] = inp.x[j];
             }
         }
         if let Some(q) = iin {
-            total += theta[q] * d.a[j];
+            total += theta[q] * inp.a[j];
             if jac {
-                jm[row + q] = d.a[j];
+                jm[row + q] = inp.a[j];
             }
         }
         force[j] = total;
-    }
-    if let Some(aa) = &d.anti_alias {
-        aa.apply(&d.h, &mut force, 1);
-        if jac {
-            aa.apply(&d.h, &mut jm, p);
-        }
     }
     Evaluation { force, jac: jm }
 }
