@@ -185,12 +185,11 @@ impl AntiAlias {
             prev.copy_from_slice(row(g.pos[start]));
             // Fine index k (0 at the run's first sample); sample r of the run reads the
             // filtered output at r m + kd + frac, once fine step k = r m + kd + 1 exists:
-            // at most one read per interval.
+            // one read per interval, on its fine step se, from the interval whose steps
+            // reach it.
             for j in start + 1..end {
                 let k0 = (j - 1 - start) * m;
-                let read = (1..=m)
-                    .find(|s| (k0 + s - 1) >= kd && (k0 + s - 1 - kd) % m == 0)
-                    .map(|s| (s, start + (k0 + s - 1 - kd) / m));
+                let read = (k0 + se > kd).then(|| start + (k0 + se - 1 - kd) / m);
                 let (ya, yb) = (row(g.pos[j - 1]), row(g.pos[j]));
                 if !g.refined[j] {
                     // Inputs linear over the interval: the m steps in closed form.
@@ -198,7 +197,7 @@ impl AntiAlias {
                         let [x1, x2, z1, z2, peak] = st[c];
                         let u = [x1, x2, z1, z2, ya[c], yb[c]];
                         if u.iter().all(|v| *v == 0.0) {
-                            if let Some((_, r)) = read {
+                            if let Some(r) = read {
                                 out[r * cols + c] = 0.0;
                             }
                             prev[c] = 0.0;
@@ -213,7 +212,7 @@ impl AntiAlias {
                                 v
                             }
                         };
-                        if let Some((_, r)) = read {
+                        if let Some(r) = read {
                             out[r * cols + c] = tiny(dot(&lin.read));
                         }
                         let (z1n, z2n) = (tiny(dot(&lin.state[2])), tiny(dot(&lin.state[3])));
@@ -232,10 +231,8 @@ impl AntiAlias {
                         if x0 == 0.0 && x1 == 0.0 && x2 == 0.0 && o.abs() <= 1e-12 * peak {
                             o = 0.0;
                         }
-                        if let Some((se, r)) = read {
-                            if se == s {
-                                out[r * cols + c] = (1.0 - frac) * zprev + frac * o;
-                            }
+                        if let (Some(r), true) = (read, s == se) {
+                            out[r * cols + c] = (1.0 - frac) * zprev + frac * o;
                         }
                         (x2, x1, z2, z1) = (x1, x0, z1, o);
                         zprev = o;

@@ -133,6 +133,19 @@ pub struct Prepared {
 }
 
 impl Prepared {
+    /// The samples as model inputs.
+    pub fn channels(&self) -> crate::subsample::Channels<'_> {
+        crate::subsample::Channels {
+            h: &self.h,
+            v: &self.v,
+            a: &self.a,
+            x: &self.x,
+            i: &self.i,
+            energy_kj: &self.energy_kj,
+            v_sigma: &self.v_sigma,
+        }
+    }
+
     /// Current steps signed by the stroke direction, `ΔI · sgn v` at every sample (0 at the
     /// first): the signal a field lag leaves its trace on.
     pub fn current_steps(&self) -> Vec<f64> {
@@ -780,19 +793,7 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
     };
     let leak_velocity_min = crate::measure::LEAK_PER_SIGMA * m.summary.rebuilt_velocity_sigma_m_s;
     let friction_velocity = (0.01 * vpeak).max(leak_velocity_min);
-    let subgrid = crate::subsample::SubGrid::build(
-        &crate::subsample::Channels {
-            h: &h,
-            v: &v,
-            a: &a,
-            x: &x,
-            i: &i,
-            energy_kj: &energy_kj,
-            v_sigma: &m.v_sigma,
-        },
-        crate::subsample::OVERSAMPLING,
-    );
-    Ok(Prepared {
+    let mut prepared = Prepared {
         t,
         x,
         v,
@@ -806,7 +807,7 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
         held_levels,
         knots,
         anti_alias: None,
-        subgrid,
+        subgrid: crate::subsample::SubGrid::default(),
         cycle,
         cycles,
         segment,
@@ -822,7 +823,10 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
         velocity_scale: vpeak,
         measurement: m.summary,
         split_method,
-    })
+    };
+    prepared.subgrid =
+        crate::subsample::SubGrid::build(&prepared.channels(), crate::subsample::OVERSAMPLING);
+    Ok(prepared)
 }
 
 #[cfg(test)]

@@ -27,6 +27,7 @@ use twin::Effect;
 
 use crate::bingham;
 use crate::data::{knot_weights, Prepared};
+use crate::subsample::Channels;
 
 /// Where each parameter lives in the parameter vector.
 #[derive(Debug, Clone, PartialEq)]
@@ -215,10 +216,10 @@ const C_MIN: f64 = 1e-3;
 /// ([`crate::antialias::AntiAlias::resample`]).
 pub fn evaluate(d: &Prepared, lay: &Layout, theta: &[f64], jac: bool) -> Evaluation {
     match &d.anti_alias {
-        None => evaluate_at(d, &Inputs::samples(d), lay, theta, jac),
+        None => evaluate_at(d, &d.channels(), lay, theta, jac),
         Some(aa) => {
             let g = &d.subgrid;
-            let ev = evaluate_at(d, &Inputs::grid(g), lay, theta, jac);
+            let ev = evaluate_at(d, &g.channels(), lay, theta, jac);
             Evaluation {
                 force: aa.resample(g, &ev.force, 1),
                 jac: if jac {
@@ -231,46 +232,10 @@ pub fn evaluate(d: &Prepared, lay: &Layout, theta: &[f64], jac: bool) -> Evaluat
     }
 }
 
-/// The per-point inputs of the model: the record's samples or a sub-sample grid.
-struct Inputs<'a> {
-    h: &'a [f64],
-    i: &'a [f64],
-    energy_kj: &'a [f64],
-    v: &'a [f64],
-    a: &'a [f64],
-    x: &'a [f64],
-    v_sigma: &'a [f64],
-}
-
-impl<'a> Inputs<'a> {
-    fn samples(d: &'a Prepared) -> Self {
-        Inputs {
-            h: &d.h,
-            i: &d.i,
-            energy_kj: &d.energy_kj,
-            v: &d.v,
-            a: &d.a,
-            x: &d.x,
-            v_sigma: &d.v_sigma,
-        }
-    }
-    fn grid(g: &'a crate::subsample::SubGrid) -> Self {
-        Inputs {
-            h: &g.h,
-            i: &g.i,
-            energy_kj: &g.energy_kj,
-            v: &g.v,
-            a: &g.a,
-            x: &g.x,
-            v_sigma: &g.v_sigma,
-        }
-    }
-}
-
 /// The model at every point of `inp`, before any filter.
 // Several per-point arrays are read and written with one index: a range loop is clearer.
 #[allow(clippy::needless_range_loop)]
-fn evaluate_at(d: &Prepared, inp: &Inputs, lay: &Layout, theta: &[f64], jac: bool) -> Evaluation {
+fn evaluate_at(d: &Prepared, inp: &Channels, lay: &Layout, theta: &[f64], jac: bool) -> Evaluation {
     let n = inp.h.len();
     let p = lay.len();
     let nk = lay.nk;

@@ -639,20 +639,9 @@ fn fit_and_judge(
     flags: &[usize],
     th: &AcceptanceThresholds,
 ) -> Vec<Judged> {
-    std::thread::scope(|scope| {
-        let handles: Vec<_> = remaining
-            .iter()
-            .map(|&e| {
-                scope.spawn(move || {
-                    let cand = fit_candidate(d, current, e);
-                    judge(d, reg, current, flags, cand, e, th)
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .map(|h| h.join().expect("candidate fit does not panic"))
-            .collect()
+    numerics::parallel::map_indexed(remaining.len(), remaining.len(), |k| {
+        let cand = fit_candidate(d, current, remaining[k]);
+        judge(d, reg, current, flags, cand, remaining[k], th)
     })
 }
 
@@ -972,25 +961,13 @@ fn baseline_and_anti_alias(d: &mut Prepared, base_effects: &[Effect]) -> Fit {
     }
     let lay = plain.layout.clone();
     let dt = d.measurement.sample_interval_s;
-    let filtered: Vec<(AntiAlias, Fit)> = std::thread::scope(|s| {
-        let handles: Vec<_> = CUTOFF_GRID
-            .iter()
-            .map(|&fc| {
-                let (plain, lay) = (&plain, &lay);
-                let mut df = d.clone();
-                s.spawn(move || {
-                    let aa = AntiAlias::butterworth2(fc, dt);
-                    df.anti_alias = Some(aa);
-                    (aa, fit(&df, lay, &plain.theta))
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .map(|h| h.join().expect("anti-alias fit thread"))
-            .collect()
-    });
-    let mut filtered = filtered;
+    let mut filtered: Vec<(AntiAlias, Fit)> =
+        numerics::parallel::map_indexed(CUTOFF_GRID.len(), CUTOFF_GRID.len(), |k| {
+            let aa = AntiAlias::butterworth2(CUTOFF_GRID[k], dt);
+            let mut df = d.clone();
+            df.anti_alias = Some(aa);
+            (aa, fit(&df, &lay, &plain.theta))
+        });
     if let Some(refined) = refine_cutoff(d, &lay, &filtered) {
         filtered.push(refined);
     }
@@ -1017,22 +994,13 @@ fn baseline_and_anti_alias(d: &mut Prepared, base_effects: &[Effect]) -> Fit {
         .into_iter()
         .filter(|&e| lay.index(e).is_none())
         .collect();
-    let keeps = std::thread::scope(|s| {
-        let handles: Vec<_> = lags
-            .iter()
-            .map(|&e| {
-                let (df, base, plain, d) = (&df, &base, &plain, &*d);
-                s.spawn(move || {
-                    let with_filter = fit_candidate(df, base, e).train_sse;
-                    let without = fit_candidate(d, plain, e).train_sse;
-                    with_filter.min(base.train_sse) < without
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .all(|h| h.join().expect("lag check thread"))
-    });
+    let keeps = numerics::parallel::map_indexed(lags.len(), lags.len(), |k| {
+        let with_filter = fit_candidate(&df, &base, lags[k]).train_sse;
+        let without = fit_candidate(d, &plain, lags[k]).train_sse;
+        with_filter.min(base.train_sse) < without
+    })
+    .into_iter()
+    .all(|keep| keep);
     if keeps {
         d.anti_alias = Some(aa);
         base
@@ -1062,6 +1030,7 @@ fn refine_cutoff(
     let mut pts: Vec<(crate::antialias::AntiAlias, Fit)> = filtered.to_vec();
     let sse = |p: &[(crate::antialias::AntiAlias, Fit)], k: usize| p[k].1.train_sse;
     let mut refined = None;
+    let mut df = d.clone();
     for _ in 0..3 {
         let best = (0..pts.len()).min_by(|&a, &b| sse(&pts, a).total_cmp(&sse(&pts, b)))?;
         if best == 0 || best + 1 >= pts.len() {
@@ -1077,7 +1046,6 @@ fn refine_cutoff(
             break;
         }
         let aa = crate::antialias::AntiAlias::butterworth2(vertex, d.measurement.sample_interval_s);
-        let mut df = d.clone();
         df.anti_alias = Some(aa);
         let f = fit(&df, lay, &pts[best].1.theta);
         if f.train_sse < y1 {

@@ -48,9 +48,10 @@ pub struct SubGrid {
     pub v_sigma: Vec<f64>,
 }
 
-/// The record's per-sample channels a grid is built from.
+/// The model's per-point inputs: the record's samples (a grid is built from them) or the
+/// points of a sub-sample grid.
 pub struct Channels<'a> {
-    /// Step to the previous sample \[s\] (0 at the start and after a gap).
+    /// Step to the previous point \[s\] (0 at the start and after a gap).
     pub h: &'a [f64],
     /// Velocity \[m/s\].
     pub v: &'a [f64],
@@ -114,6 +115,19 @@ impl SubGrid {
         self.x.push(x);
         self.i.push(i);
         self.energy_kj.push(e);
+    }
+
+    /// The grid's points as model inputs.
+    pub fn channels(&self) -> Channels<'_> {
+        Channels {
+            h: &self.h,
+            v: &self.v,
+            a: &self.a,
+            x: &self.x,
+            i: &self.i,
+            energy_kj: &self.energy_kj,
+            v_sigma: &self.v_sigma,
+        }
     }
 
     /// Number of grid points.
