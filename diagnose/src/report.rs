@@ -381,7 +381,9 @@ pub fn render_markdown(r: &Report) -> String {
     let _ = writeln!(
         s,
         "\n**Measurement.** Noise: displacement {:.2} µm, velocity {}, force (high-frequency) \
-         {:.2} N; rebuilt velocity σ {:.3} mm/s (window ±{} samples, stroke period {:.3} s).{}\n",
+         {:.2} N; rebuilt velocity σ {:.3} mm/s (window ±{} samples, stroke period {:.3} s); \
+         {} samples at the ends of the record and its segments left out (one-sided \
+         velocity).{}\n",
         1e6 * m.displacement_noise_m,
         m.velocity_noise_m_s
             .map(|v| format!("{:.3} mm/s", 1e3 * v))
@@ -390,6 +392,7 @@ pub fn render_markdown(r: &Report) -> String {
         1e3 * m.rebuilt_velocity_sigma_m_s,
         m.window_half_samples,
         m.stroke_period_s,
+        m.edge_samples,
         if m.flat_stretches.is_empty() {
             String::new()
         } else {

@@ -949,11 +949,13 @@ pub fn diagnose(signals: &Signals, input: &str, opts: &Options) -> Result<Diagno
 /// and baseline + compressibility under the filter must beat baseline + compressibility
 /// without it; and it must predict the held-out blocks better too. Sets `d.anti_alias`
 /// and returns the baseline under it.
+///
+/// The plain baseline is the better of two starts of its relative leak
+/// ([`crate::model::fit_baseline`]).
 fn baseline_and_anti_alias(d: &mut Prepared, base_effects: &[Effect]) -> Fit {
     use crate::antialias::{AntiAlias, CUTOFF_GRID};
     d.anti_alias = None;
-    let (lay, theta) = crate::model::baseline_start(d);
-    let mut plain = fit(d, &lay, &theta);
+    let mut plain = crate::model::fit_baseline(d);
     for &e in base_effects {
         if plain.layout.index(e).is_none() {
             plain = fit_candidate(d, &plain, e);

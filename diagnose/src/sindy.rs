@@ -14,7 +14,7 @@ use twin::Effect;
 
 use crate::data::Prepared;
 use crate::data::{prepare, DataError, Signals};
-use crate::model::{baseline_start, evaluate, fit, Fit};
+use crate::model::{evaluate, fit_baseline, Fit};
 
 /// Threshold on a term's contribution (coefficient × column RMS) relative to the RMS of
 /// the residual.
@@ -23,8 +23,7 @@ pub const THRESHOLD: f64 = 0.05;
 /// Effects whose terms survive the sequential thresholding.
 pub fn sindy_effects(signals: &Signals) -> Result<Vec<Effect>, DataError> {
     let d = prepare(signals)?;
-    let (lay, th0) = baseline_start(&d);
-    let base = fit(&d, &lay, &th0);
+    let base = fit_baseline(&d);
     Ok(sindy_select(&d, &base))
 }
 
