@@ -115,7 +115,8 @@ pub struct Prepared {
     pub holdout: Vec<bool>,
     /// `true` for fitting samples (never for excluded ones).
     pub train: Vec<bool>,
-    /// `true` for samples left out of fitting and validation (a channel stuck).
+    /// `true` for samples left out of fitting and validation (a channel stuck, or the ends
+    /// of the record and its segments).
     pub excluded: Vec<bool>,
     /// Validation block of each sample (contiguous in time; odd blocks are held out).
     pub block: Vec<usize>,
@@ -733,8 +734,8 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
     let excluded = m.excluded;
     if excluded.iter().filter(|e| !**e).count() < 200 {
         return Err(DataError(
-            "fewer than 200 samples are left once the stuck (flat-lined) stretches are \
-             taken out"
+            "fewer than 200 samples are left once the stuck (flat-lined) stretches and the \
+             ends of the record and its segments (one local window each) are taken out"
                 .into(),
         ));
     }

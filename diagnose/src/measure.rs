@@ -162,7 +162,8 @@ pub struct Measured {
     pub a: Vec<f64>,
     /// Standard deviation of the rebuilt velocity's error at each sample \[m/s\].
     pub v_sigma: Vec<f64>,
-    /// Samples left out (a channel stuck, with a margin of 2 samples).
+    /// Samples left out (a channel stuck, with a margin of 2 samples; the first and last
+    /// local window of the record and of each segment).
     pub excluded: Vec<bool>,
     /// The summary for the report.
     pub summary: MeasurementSummary,

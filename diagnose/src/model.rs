@@ -712,7 +712,7 @@ pub fn fit_baseline(d: &Prepared) -> Fit {
 
 /// Start values of the baseline: per knot, F ≈ a sgn v + c v on the samples at that
 /// knot, F_y = a / 1.5 (the Bingham slit's high-speed intercept is 3/2 F_y).
-pub fn baseline_start(d: &Prepared) -> (Layout, Vec<f64>) {
+fn baseline_start(d: &Prepared) -> (Layout, Vec<f64>) {
     let nk = d.knots.len();
     let mut theta = vec![0.0; 3 * nk + BASE_EXTRA];
     for k in 0..nk {
