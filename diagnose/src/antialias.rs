@@ -20,17 +20,24 @@ use serde::Serialize;
 use crate::subsample::SubGrid;
 
 /// The filter over the m fine steps of an interval whose inputs are linear between its
-/// ends, as linear maps of u = (x[k-1], x[k-2], z[k-1], z[k-2], y_start, y_end): the state
-/// after the interval, and the read at fine step se (between steps se − 1 and se).
+/// ends. At an interval's start the filter's last input x[k-1] is always the interval's
+/// first value y_start (a run starts from steady state at it; an interval ends on its
+/// last value), so the state is (x[k-2], z[k-1], z[k-2]) and the maps act on
+/// u = (x[k-2], z[k-1], z[k-2], y_start, y_end): the read at fine step se (between steps
+/// se − 1 and se), z[k-1] and z[k-2] after the interval, and x[k-2] after it, which
+/// depends on the two ends only.
 struct LinearInterval {
-    state: [[f64; 6]; 4],
-    read: [f64; 6],
+    read: [f64; 5],
+    z1: [f64; 5],
+    z2: [f64; 5],
+    x2: [f64; 2],
 }
 
 impl LinearInterval {
     fn new(b: [f64; 3], a1: f64, a2: f64, m: usize, se: usize, frac: f64) -> Self {
-        let mut state = [[0.0; 6]; 4];
+        // Responses to the six unit inputs (x[k-1], x[k-2], z[k-1], z[k-2], y_start, y_end).
         let mut read = [0.0; 6];
+        let mut after = [[0.0; 6]; 4];
         for i in 0..6 {
             let mut u = [0.0; 6];
             u[i] = 1.0;
@@ -44,11 +51,19 @@ impl LinearInterval {
                 }
                 (x2, x1, z2, z1) = (x1, x0, z1, o);
             }
-            for (row, v) in state.iter_mut().zip([x1, x2, z1, z2]) {
+            for (row, v) in after.iter_mut().zip([x1, x2, z1, z2]) {
                 row[i] = v;
             }
         }
-        LinearInterval { state, read }
+        // x[k-1] = y_start: its column joins y_start's.
+        let fold = |w: [f64; 6]| [w[1], w[2], w[3], w[0] + w[4], w[5]];
+        let x2 = fold(after[1]);
+        LinearInterval {
+            read: fold(read),
+            z1: fold(after[2]),
+            z2: fold(after[3]),
+            x2: [x2[3], x2[4]],
+        }
     }
 }
 
@@ -167,10 +182,15 @@ impl AntiAlias {
         let se = kd % m + 1;
         let lin = LinearInterval::new(b, a1, a2, m, se, frac);
         let mut out = vec![0.0; n * cols];
-        // Per column: x[k-1], x[k-2], z[k-1], z[k-2], largest |x| so far; and z at the
-        // previous fine step (for the read between two fine steps).
-        let mut st = vec![[0.0f64; 5]; cols];
-        let mut prev = vec![0.0; cols];
+        // Per column, one array each so that the columns of a step run side by side:
+        // x[k-1], x[k-2], z[k-1], z[k-2] and the largest |x| so far; the read of the
+        // current interval.
+        let mut x1 = vec![0.0; cols];
+        let mut x2 = vec![0.0; cols];
+        let mut z1 = vec![0.0; cols];
+        let mut z2 = vec![0.0; cols];
+        let mut peak = vec![0.0; cols];
+        let mut got = vec![0.0; cols];
         let row = |k: usize| &y[k * cols..(k + 1) * cols];
         let mut start = 0;
         while start < n {
@@ -178,11 +198,13 @@ impl AntiAlias {
             while end < n && g.h[g.pos[end]] > 0.0 {
                 end += 1;
             }
-            for (c, s) in st.iter_mut().enumerate() {
-                let y0 = row(g.pos[start])[c];
-                *s = [y0, y0, y0, y0, y0.abs()];
+            let y0 = row(g.pos[start]);
+            for s in [&mut x1, &mut x2, &mut z1, &mut z2] {
+                s.copy_from_slice(y0);
             }
-            prev.copy_from_slice(row(g.pos[start]));
+            for (p, v) in peak.iter_mut().zip(y0) {
+                *p = v.abs();
+            }
             // Fine index k (0 at the run's first sample); sample r of the run reads the
             // filtered output at r m + kd + frac, once fine step k = r m + kd + 1 exists:
             // one read per interval, on its fine step se, from the interval whose steps
@@ -193,59 +215,58 @@ impl AntiAlias {
                 let (ya, yb) = (row(g.pos[j - 1]), row(g.pos[j]));
                 if !g.refined[j] {
                     // Inputs linear over the interval: the m steps in closed form.
+                    let dot = |w: &[f64; 5], u: &[f64; 5]| {
+                        w[0] * u[0] + w[1] * u[1] + w[2] * u[2] + w[3] * u[3] + w[4] * u[4]
+                    };
                     for c in 0..cols {
-                        let [x1, x2, z1, z2, peak] = st[c];
-                        let u = [x1, x2, z1, z2, ya[c], yb[c]];
-                        if u.iter().all(|v| *v == 0.0) {
-                            if let Some(r) = read {
-                                out[r * cols + c] = 0.0;
-                            }
-                            prev[c] = 0.0;
-                            continue;
-                        }
-                        let dot = |w: &[f64; 6]| w.iter().zip(&u).map(|(a, b)| a * b).sum::<f64>();
-                        let peak = peak.max(ya[c].abs()).max(yb[c].abs());
+                        let u = [x2[c], z1[c], z2[c], ya[c], yb[c]];
+                        let pk = peak[c].max(ya[c].abs()).max(yb[c].abs());
+                        let quiet = ya[c] == 0.0 && yb[c] == 0.0;
                         let tiny = |v: f64| {
-                            if ya[c] == 0.0 && yb[c] == 0.0 && v.abs() <= 1e-12 * peak {
+                            if quiet && v.abs() <= 1e-12 * pk {
                                 0.0
                             } else {
                                 v
                             }
                         };
-                        if let Some(r) = read {
-                            out[r * cols + c] = tiny(dot(&lin.read));
-                        }
-                        let (z1n, z2n) = (tiny(dot(&lin.state[2])), tiny(dot(&lin.state[3])));
-                        st[c] = [dot(&lin.state[0]), dot(&lin.state[1]), z1n, z2n, peak];
-                        prev[c] = z1n;
+                        got[c] = tiny(dot(&lin.read, &u));
+                        z1[c] = tiny(dot(&lin.z1, &u));
+                        z2[c] = tiny(dot(&lin.z2, &u));
+                        x1[c] = yb[c];
+                        x2[c] = lin.x2[0] * ya[c] + lin.x2[1] * yb[c];
+                        peak[c] = pk;
                     }
-                    continue;
-                }
-                for c in 0..cols {
-                    let [mut x1, mut x2, mut z1, mut z2, mut peak] = st[c];
-                    let mut zprev = prev[c];
+                } else {
                     for s in 1..=m {
-                        let x0 = y[(g.pos[j - 1] + s) * cols + c];
-                        let mut o = b[0] * x0 + b[1] * x1 + b[2] * x2 - a1 * z1 - a2 * z2;
-                        peak = peak.max(x0.abs());
-                        if x0 == 0.0 && x1 == 0.0 && x2 == 0.0 && o.abs() <= 1e-12 * peak {
-                            o = 0.0;
+                        let xs = row(g.pos[j - 1] + s);
+                        for c in 0..cols {
+                            let x0 = xs[c];
+                            let mut o =
+                                b[0] * x0 + b[1] * x1[c] + b[2] * x2[c] - a1 * z1[c] - a2 * z2[c];
+                            peak[c] = peak[c].max(x0.abs());
+                            if x0 == 0.0
+                                && x1[c] == 0.0
+                                && x2[c] == 0.0
+                                && o.abs() <= 1e-12 * peak[c]
+                            {
+                                o = 0.0;
+                            }
+                            if s == se {
+                                got[c] = (1.0 - frac) * z1[c] + frac * o;
+                            }
+                            (x2[c], x1[c], z2[c], z1[c]) = (x1[c], x0, z1[c], o);
                         }
-                        if let (Some(r), true) = (read, s == se) {
-                            out[r * cols + c] = (1.0 - frac) * zprev + frac * o;
-                        }
-                        (x2, x1, z2, z1) = (x1, x0, z1, o);
-                        zprev = o;
                     }
-                    st[c] = [x1, x2, z1, z2, peak];
-                    prev[c] = zprev;
+                }
+                if let Some(r) = read {
+                    out[r * cols..(r + 1) * cols].copy_from_slice(&got);
                 }
             }
             // Samples whose read position lies past the run's last output take that output.
             let k = (end - 1 - start) * m;
             let first_unread = if k > kd { (k - 1 - kd) / m + 1 } else { 0 };
             for r in first_unread..end - start {
-                out[(start + r) * cols..(start + r + 1) * cols].copy_from_slice(&prev);
+                out[(start + r) * cols..(start + r + 1) * cols].copy_from_slice(&z1);
             }
             start = end;
         }

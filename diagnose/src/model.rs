@@ -37,6 +37,9 @@ pub struct Layout {
     pub nk: usize,
     /// Effects in the model, in the order their parameters follow.
     pub effects: Vec<Effect>,
+    /// Whether the yield softness ([`Layout::softness_index`]) is fitted; when not, it is
+    /// held at its start value (its Jacobian column is zero).
+    pub soft: bool,
 }
 
 /// One named parameter.
@@ -115,10 +118,10 @@ pub fn sample_leak(leak: f64, v_sigma: f64) -> f64 {
     (leak * leak + m * m).sqrt()
 }
 
-/// Parameters of the baseline besides the knots: force offset, absolute leak velocity and
+/// Parameters of the baseline besides the knots: force offset, absolute leak velocity,
 /// relative leak (leak velocity per yield velocity F_y/c: a bi-viscous fluid's inverse
-/// viscosity ratio).
-pub const BASE_EXTRA: usize = 3;
+/// viscosity ratio) and yield softness ([`Layout::softness_index`]).
+pub const BASE_EXTRA: usize = 4;
 
 impl Layout {
     /// Index of the force-sensor offset \[N\].
@@ -132,6 +135,14 @@ impl Layout {
     /// Index of the relative leak (per yield velocity F_y/c) \[1\].
     pub fn leak_rel_index(&self) -> usize {
         2 * self.nk + 2
+    }
+    /// Index of the yield softness β \[1\], in 0…1: the share of the yield force that the
+    /// fluid reaches exponentially, `F_y (1 − e^{−|v|/v_ε})`, instead of through the leak's
+    /// ramp, as a regularised (Papanastasiou) fluid does: τ = τ₀ (1 − e^{−m γ̇}) + μ γ̇.
+    /// Its term is proportional to F_y at every current, so a current-independent seal
+    /// friction cannot stand in for it.
+    pub fn softness_index(&self) -> usize {
+        2 * self.nk + 3
     }
     /// Index of the first knot's speed-curvature coefficient c₂ \[N\] (nk of them).
     pub fn curvature_index(&self) -> usize {
@@ -255,6 +266,8 @@ fn evaluate_at(d: &Prepared, inp: &Channels, lay: &Layout, theta: &[f64], jac: b
     let ilr = lay.leak_rel_index();
     let icv = lay.curvature_index();
     let leak_rel = theta[ilr].max(0.0);
+    let isf = lay.softness_index();
+    let softness = theta[isf].clamp(0.0, 1.0);
     let tau = ilag.map(|k| theta[k].max(0.0)).unwrap_or(0.0);
     let comp = icp.map(|k| theta[k].max(0.0)).unwrap_or(0.0);
     let mut i_eff = inp.i[0];
@@ -393,6 +406,28 @@ fn evaluate_at(d: &Prepared, inp: &Channels, lay: &Layout, theta: &[f64], jac: b
                 jm[row + l] += scale * (theta[icv + k2] - theta[icv + k]) * dlam * di_dtau * q2;
             }
         }
+        // Yield softness: β F_y sgn v [(1 − e^{−r}) − min(r, 1)], r = |v|/v_ε, the
+        // exponential approach minus the leak ramp's share of F_y (zero for |v| ≫ v_ε).
+        if veps > 0.0 {
+            let r = v.abs() / veps;
+            let er = (-r).exp();
+            let hr = (1.0 - er) - r.min(1.0);
+            let sg = if v < 0.0 { -1.0 } else { 1.0 };
+            total += softness * sg * fy * hr;
+            if jac && lay.soft {
+                jm[row + isf] += sg * fy * hr;
+                // ∂/∂v_ε of the term, through r.
+                let dve = softness * sg * fy * (er - if r < 1.0 { 1.0 } else { 0.0 }) * (-r / veps);
+                for &(q, g) in &gfy {
+                    jm[row + q] += (softness * sg * hr + dve * dve_fy) * g;
+                }
+                for &(q, g) in &gc {
+                    jm[row + q] += dve * dve_c * g;
+                }
+                jm[row + ileak] += dve * dve_la;
+                jm[row + ilr] += dve * dve_lr;
+            }
+        }
         if let Some(q) = ifr {
             let sh = (v / d.friction_velocity).tanh();
             total += theta[q] * sh;
@@ -521,6 +556,8 @@ fn clamp_bounds(d: &Prepared, lay: &Layout, theta: &mut [f64]) {
     theta[k] = theta[k].clamp(0.0, 0.25 * vmax);
     let k = lay.leak_rel_index();
     theta[k] = theta[k].clamp(0.0, 0.5);
+    let k = lay.softness_index();
+    theta[k] = theta[k].clamp(0.0, 1.0);
     for e in [
         Effect::FieldLag,
         Effect::FluidCompressibility,
@@ -601,20 +638,39 @@ pub fn fit_limited(d: &Prepared, lay: &Layout, theta0: &[f64], max_iter: usize) 
         max_iter,
         ..LmOptions::default()
     };
+    // Behind the anti-alias filter, trial points are evaluated without the Jacobian
+    // (filtering its columns is most of an evaluation's cost, and a rejected trial does
+    // not need it); an accepted one gets it when it is linearised. Without the filter the
+    // Jacobian costs little beside the force, and every trial gets it at once.
+    let eager = d.anti_alias.is_none();
+    let with_jacobian = |theta: &[f64], ev: Evaluation| {
+        if ev.jac.is_empty() {
+            evaluate(d, lay, theta, true)
+        } else {
+            ev
+        }
+    };
     let fit = levenberg_marquardt(
         (theta, ev),
         sse,
         &opts,
-        |(_, ev): &(Vec<f64>, Evaluation)| Some(normal_equations(d, ev, p)),
+        |(theta, ev): &(Vec<f64>, Evaluation)| {
+            if ev.jac.is_empty() {
+                Some(normal_equations(d, &evaluate(d, lay, theta, true), p))
+            } else {
+                Some(normal_equations(d, ev, p))
+            }
+        },
         |(theta, _): &(Vec<f64>, Evaluation), step: &nalgebra::DVector<f64>| {
             let mut trial: Vec<f64> = theta.iter().zip(step.iter()).map(|(t, s)| t + s).collect();
             clamp_bounds(d, lay, &mut trial);
-            let ev = evaluate(d, lay, &trial, true);
+            let ev = evaluate(d, lay, &trial, eager);
             let sse = sse_train(d, &ev.force);
             Some(((trial, ev), sse))
         },
     );
     let ((theta, ev), sse) = (fit.state, fit.cost);
+    let ev = with_jacobian(&theta, ev);
     // Residual autocorrelation and parameter standard errors.
     let r: Vec<f64> = (0..n)
         .filter(|&j| d.train[j])
@@ -655,8 +711,11 @@ fn normal_equations(
     ev: &Evaluation,
     p: usize,
 ) -> (nalgebra::DMatrix<f64>, nalgebra::DVector<f64>) {
-    let mut jtj = nalgebra::DMatrix::<f64>::zeros(p, p);
+    // Upper triangle, row-major, over the nonzero entries of each Jacobian row (most
+    // knots' columns are zero at a given current).
+    let mut upper = vec![0.0; p * p];
     let mut jtr = nalgebra::DVector::<f64>::zeros(p);
+    let mut nz: Vec<(usize, f64)> = Vec::with_capacity(p);
     for j in 0..d.len() {
         if !d.train[j] {
             continue;
@@ -664,21 +723,26 @@ fn normal_equations(
         let row = &ev.jac[j * p..(j + 1) * p];
         let w = d.weight[j];
         let r = d.f[j] - ev.force[j];
-        for a in 0..p {
-            if row[a] == 0.0 {
-                continue;
-            }
-            jtr[a] += w * row[a] * r;
-            for b in a..p {
-                jtj[(a, b)] += w * row[a] * row[b];
+        nz.clear();
+        nz.extend(
+            row.iter()
+                .enumerate()
+                .filter(|(_, v)| **v != 0.0)
+                .map(|(a, v)| (a, *v)),
+        );
+        for (ia, &(a, ra)) in nz.iter().enumerate() {
+            let wa = w * ra;
+            jtr[a] += wa * r;
+            let acc = &mut upper[a * p..(a + 1) * p];
+            for &(b, rb) in &nz[ia..] {
+                acc[b] += wa * rb;
             }
         }
     }
-    for a in 0..p {
-        for b in 0..a {
-            jtj[(a, b)] = jtj[(b, a)];
-        }
-    }
+    let jtj = nalgebra::DMatrix::<f64>::from_fn(p, p, |a, b| {
+        let (lo, hi) = if a <= b { (a, b) } else { (b, a) };
+        upper[lo * p + hi]
+    });
     (jtj, jtr)
 }
 
@@ -692,11 +756,14 @@ fn normal_equations(
 /// 1/434 relative leak and 2.6 σ_F.
 pub const RELATIVE_LEAK_STARTS: [f64; 2] = [0.0, 0.05];
 
-/// The baseline fitted from each of [`RELATIVE_LEAK_STARTS`] (in parallel); the lower
-/// fitting SSE wins.
+/// The baseline fitted from each of [`RELATIVE_LEAK_STARTS`] (in parallel) with the yield
+/// softness held at 0; the lower fitting SSE wins, and the fit goes on from it with the
+/// softness free. (Free from the start, the softness runs to its bound in the first
+/// steps and the fit stops in a worse basin: bi-viscous null seed 29 of the proving
+/// ground fitted 18.2 N RMS against 6.1 N without the softness.)
 pub fn fit_baseline(d: &Prepared) -> Fit {
     let (lay, theta) = baseline_start(d);
-    numerics::parallel::map_indexed(
+    let best = numerics::parallel::map_indexed(
         RELATIVE_LEAK_STARTS.len(),
         RELATIVE_LEAK_STARTS.len(),
         |k| {
@@ -707,7 +774,9 @@ pub fn fit_baseline(d: &Prepared) -> Fit {
     )
     .into_iter()
     .min_by(|a, b| a.train_sse.total_cmp(&b.train_sse))
-    .expect("at least one start")
+    .expect("at least one start");
+    let soft = Layout { soft: true, ..lay };
+    fit(d, &soft, &best.theta)
 }
 
 /// Start values of the baseline: per knot, F ≈ a sgn v + c v on the samples at that
@@ -751,6 +820,7 @@ fn baseline_start(d: &Prepared) -> (Layout, Vec<f64>) {
         Layout {
             nk,
             effects: Vec::new(),
+            soft: false,
         },
         theta,
     )
@@ -786,9 +856,11 @@ mod tests {
         let lay = Layout {
             nk: d.knots.len(),
             effects: Effect::ALL.to_vec(),
+            soft: true,
         };
+        // knots' F_y and c, offset, leak, relative leak, yield softness, knots' c₂
         let mut theta = vec![
-            250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 12.0, 0.004, 0.05, -20.0, 10.0, 30.0,
+            250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 12.0, 0.004, 0.05, 0.3, -20.0, 10.0, 30.0,
         ];
         // compressibility 0.05 mm/kN, gas, friction, thermal, lag 8 ms, inertia (ALL order)
         theta.extend([5e-8, 800.0, 15.0, 0.05, 0.008, 0.5]);
@@ -823,9 +895,10 @@ mod tests {
         let base = Layout {
             nk: d.knots.len(),
             effects: vec![],
+            soft: true,
         };
         let th = vec![
-            250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 0.0, 0.004, 0.0, 0.0, 0.0, 0.0,
+            250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 0.0, 0.004, 0.0, 0.0, 0.0, 0.0, 0.0,
         ];
         let f0 = evaluate(&d, &base, &th, false).force;
         let lay = base.with(Effect::FluidCompressibility);
@@ -839,7 +912,7 @@ mod tests {
             .fold(0.0, f64::max);
         assert!(worst < 1.0, "largest difference {worst} N");
         // A stiff chamber lags: with a large compliance the force after reversal is lower.
-        tc[12] = 2e-7;
+        tc[13] = 2e-7;
         let f2 = evaluate(&d, &lay, &tc, false).force;
         let diff: f64 = f0.iter().zip(&f2).map(|(a, b)| (a - b).powi(2)).sum();
         assert!(diff > 1e3);

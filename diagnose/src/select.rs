@@ -1079,7 +1079,12 @@ pub fn diagnose_with_progress(
     // Errors in variables: weight each sample by how predictable its force is under the
     // rebuilt velocity's error, then refit.
     d.weight = crate::model::predictive_weights(&d, &first);
-    let base = fit(&d, &first.layout, &first.theta);
+    let mut base = fit(&d, &first.layout, &first.theta);
+    // The yield softness is a property of the fluid the baseline has settled: candidates
+    // and their bootstrap replicates hold it (free, it trades with a seal friction, whose
+    // smoothed step is the same shape at one current; on proving-ground seed 42 the
+    // friction and gas spring it took were lost).
+    base.layout.soft = false;
     let d = d;
     let summary = |f: &Fit| ModelSummary {
         model: f.layout.name(),
@@ -1094,11 +1099,34 @@ pub fn diagnose_with_progress(
         Selector::Sindy => sindy_selection(&d, &reg, &base, opts),
         _ => forward_selection(&d, &reg, &base, opts, progress),
     };
-    let (current, withdrawn) = if opts.selector == Selector::Calibrated {
+    let (mut current, withdrawn) = if opts.selector == Selector::Calibrated {
         prune(&d, sel.current, &mut sel.accepted)
     } else {
         (sel.current, Vec::new())
     };
+    // The final model refits the yield softness the candidates held (as the baseline
+    // fitted it), from that value and from 0 (in parallel); the lower fitting SSE wins.
+    // Held, the softness the baseline settled without the compressibility left UTFSM
+    // 25mm0x5Hz at a final held-out RMS of 73.7 N (68.6 N with no softness at all); refitted
+    // from the held value alone, 70.1 N.
+    if current.layout.effects != base.layout.effects {
+        let lay = crate::model::Layout {
+            soft: true,
+            ..current.layout.clone()
+        };
+        let isf = lay.softness_index();
+        let held = current.theta.clone();
+        current = numerics::parallel::map_indexed(2, 2, |k| {
+            let mut start = held.clone();
+            if k == 1 {
+                start[isf] = 0.0;
+            }
+            fit(&d, &lay, &start)
+        })
+        .into_iter()
+        .min_by(|a, b| a.train_sse.total_cmp(&b.train_sse))
+        .expect("two starts");
+    }
     let findings = sel
         .accepted
         .iter()
@@ -1239,7 +1267,8 @@ fn prune(
     (current, withdrawn)
 }
 
-/// The baseline's measurement parameters (force offset, leak velocity) of a fit.
+/// The baseline's measurement and fluid-shape parameters (force offset, leaks, yield
+/// softness) of a fit.
 fn base_parameters(f: &Fit) -> BTreeMap<String, f64> {
     let l = &f.layout;
     BTreeMap::from([
@@ -1252,5 +1281,6 @@ fn base_parameters(f: &Fit) -> BTreeMap<String, f64> {
             "leak_per_yield_velocity".to_string(),
             f.theta[l.leak_rel_index()],
         ),
+        ("yield_softness".to_string(), f.theta[l.softness_index()]),
     ])
 }
