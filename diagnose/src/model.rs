@@ -408,7 +408,8 @@ fn evaluate_at(d: &Prepared, inp: &Channels, lay: &Layout, theta: &[f64], jac: b
         }
         // Yield softness: β F_y sgn v [(1 − e^{−r}) − min(r, 1)], r = |v|/v_ε, the
         // exponential approach minus the leak ramp's share of F_y (zero for |v| ≫ v_ε).
-        if veps > 0.0 {
+        // Nothing to add when β is 0 and held (no term, no Jacobian column).
+        if veps > 0.0 && (softness > 0.0 || (jac && lay.soft)) {
             let r = v.abs() / veps;
             let er = (-r).exp();
             let hr = (1.0 - er) - r.min(1.0);
@@ -643,23 +644,17 @@ pub fn fit_limited(d: &Prepared, lay: &Layout, theta0: &[f64], max_iter: usize) 
     // not need it); an accepted one gets it when it is linearised. Without the filter the
     // Jacobian costs little beside the force, and every trial gets it at once.
     let eager = d.anti_alias.is_none();
-    let with_jacobian = |theta: &[f64], ev: Evaluation| {
-        if ev.jac.is_empty() {
-            evaluate(d, lay, theta, true)
-        } else {
-            ev
-        }
-    };
+    let full = |theta: &[f64]| evaluate(d, lay, theta, true);
     let fit = levenberg_marquardt(
         (theta, ev),
         sse,
         &opts,
         |(theta, ev): &(Vec<f64>, Evaluation)| {
-            if ev.jac.is_empty() {
-                Some(normal_equations(d, &evaluate(d, lay, theta, true), p))
+            Some(if ev.jac.is_empty() {
+                normal_equations(d, &full(theta), p)
             } else {
-                Some(normal_equations(d, ev, p))
-            }
+                normal_equations(d, ev, p)
+            })
         },
         |(theta, _): &(Vec<f64>, Evaluation), step: &nalgebra::DVector<f64>| {
             let mut trial: Vec<f64> = theta.iter().zip(step.iter()).map(|(t, s)| t + s).collect();
@@ -670,7 +665,7 @@ pub fn fit_limited(d: &Prepared, lay: &Layout, theta0: &[f64], max_iter: usize) 
         },
     );
     let ((theta, ev), sse) = (fit.state, fit.cost);
-    let ev = with_jacobian(&theta, ev);
+    let ev = if ev.jac.is_empty() { full(&theta) } else { ev };
     // Residual autocorrelation and parameter standard errors.
     let r: Vec<f64> = (0..n)
         .filter(|&j| d.train[j])
@@ -763,20 +758,25 @@ pub const RELATIVE_LEAK_STARTS: [f64; 2] = [0.0, 0.05];
 /// ground fitted 18.2 N RMS against 6.1 N without the softness.)
 pub fn fit_baseline(d: &Prepared) -> Fit {
     let (lay, theta) = baseline_start(d);
-    let best = numerics::parallel::map_indexed(
-        RELATIVE_LEAK_STARTS.len(),
-        RELATIVE_LEAK_STARTS.len(),
-        |k| {
+    let starts: Vec<Vec<f64>> = RELATIVE_LEAK_STARTS
+        .iter()
+        .map(|&l| {
             let mut start = theta.clone();
-            start[lay.leak_rel_index()] = RELATIVE_LEAK_STARTS[k];
-            fit(d, &lay, &start)
-        },
-    )
-    .into_iter()
-    .min_by(|a, b| a.train_sse.total_cmp(&b.train_sse))
-    .expect("at least one start");
+            start[lay.leak_rel_index()] = l;
+            start
+        })
+        .collect();
+    let best = fit_best_of(d, &lay, &starts);
     let soft = Layout { soft: true, ..lay };
     fit(d, &soft, &best.theta)
+}
+
+/// [`fit`] from each of `starts` (in parallel); the lowest fitting SSE wins.
+pub fn fit_best_of(d: &Prepared, lay: &Layout, starts: &[Vec<f64>]) -> Fit {
+    numerics::parallel::map_indexed(starts.len(), starts.len(), |k| fit(d, lay, &starts[k]))
+        .into_iter()
+        .min_by(|a, b| a.train_sse.total_cmp(&b.train_sse))
+        .expect("at least one start")
 }
 
 /// Start values of the baseline: per knot, F ≈ a sgn v + c v on the samples at that

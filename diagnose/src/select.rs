@@ -1110,18 +1110,9 @@ pub fn diagnose_with_progress(
     // 73.7 N, against 68.6 N with no softness at all. Freed instead, it trades with a seal
     // friction (proving-ground seed 14: held-out gain 0.53 → 0.02).
     if current.layout.effects != base.layout.effects {
-        let isf = current.layout.softness_index();
-        let held = current.theta.clone();
-        current = numerics::parallel::map_indexed(2, 2, |k| {
-            let mut start = held.clone();
-            if k == 1 {
-                start[isf] = 0.0;
-            }
-            fit(&d, &current.layout, &start)
-        })
-        .into_iter()
-        .min_by(|a, b| a.train_sse.total_cmp(&b.train_sse))
-        .expect("two starts");
+        let mut unsoft = current.theta.clone();
+        unsoft[current.layout.softness_index()] = 0.0;
+        current = crate::model::fit_best_of(&d, &current.layout, &[current.theta.clone(), unsoft]);
     }
     let findings = sel
         .accepted
