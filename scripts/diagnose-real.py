@@ -47,9 +47,10 @@ def row(name, path, binary, selector, tmp):
         "%s (%s %.3g %s)" % (x["effect"], *next((k, p["value"], p["unit"]) for k, p in x["parameters"].items()))
         for x in d["findings"]) or "—"
     withdrawn = ", ".join(w.split(":")[0] for w in d.get("withdrawn", [])) or "—"
-    return "| %s | %d | %.1f → %.1f | %s | %d | %s |" % (
+    undecided = "; ".join(" or ".join(u["effects"]) for u in d.get("undecided", [])) or "—"
+    return "| %s | %d | %.1f → %.1f | %s | %s | %d | %s |" % (
         name, d["samples"], d["baseline"]["holdout_rmse_N"], d["final"]["holdout_rmse_N"],
-        finds, len(d["unexplained"]), withdrawn)
+        finds, undecided, len(d["unexplained"]), withdrawn)
 
 
 def main():
@@ -57,8 +58,9 @@ def main():
     ap.add_argument("--bin", default=os.path.join(ROOT, "target", "release", "mrtwin"))
     ap.add_argument("--selector", default="calibrated")
     args = ap.parse_args()
-    print("| record | samples | held-out RMS (N), baseline → final | findings | unexplained | withdrawn |")
-    print("|---|---|---|---|---|---|")
+    print("| record | samples | held-out RMS (N), baseline → final | findings | undecided | "
+          "unexplained | withdrawn |")
+    print("|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         for stem in ["5mm3Hz", "2mm5Hz", "10mm1Hz", "25mm0x5Hz"]:
             csv = os.path.join(tmp, stem + ".csv")

@@ -475,11 +475,30 @@ pub fn fit_candidate_limited(d: &Prepared, current: &Fit, e: Effect, max_iter: u
             .iter()
             .map(|f| vec![f * xr / fpeak])
             .collect(),
+        // A Dahl friction of F_c taken from every knot's yield force (a Coulomb force is
+        // in them while the candidate is out), at presliding displacements of 10, 30 and
+        // 100 µm; from
+        // F_c = 0 the presliding displacement would have no gradient.
+        Effect::SealFriction => {
+            let fy_min = current.theta[..current.layout.nk]
+                .iter()
+                .fold(f64::INFINITY, |m, x| m.min(*x));
+            let fc = (0.5 * fy_min).min(0.03 * fpeak).max(0.0);
+            let xp_max = crate::model::xp_max(d);
+            [1e-5f64, 3e-5, 1e-4]
+                .iter()
+                .map(|x| vec![fc, x.min(xp_max)])
+                .collect()
+        }
         _ => vec![vec![0.0; effect_params(e).len()]],
     };
     let mut best: Option<(f64, Vec<f64>)> = None;
     for s in starts {
-        let th = extend(&current.layout, &current.theta, &lay, &[(e, s)]);
+        let moved = if e == Effect::SealFriction { s[0] } else { 0.0 };
+        let mut th = extend(&current.layout, &current.theta, &lay, &[(e, s)]);
+        for fy in &mut th[..lay.nk] {
+            *fy -= moved;
+        }
         let ev = evaluate(d, &lay, &th, false);
         let sse = crate::model::sse_train(d, &ev.force);
         if best.as_ref().is_none_or(|b| sse < b.0) {
@@ -1100,7 +1119,7 @@ pub fn diagnose_with_progress(
         _ => forward_selection(&d, &reg, &base, opts, progress),
     };
     let (mut current, withdrawn) = if opts.selector == Selector::Calibrated {
-        prune(&d, sel.current, &mut sel.accepted)
+        prune(&d, &base, sel.current, &mut sel.accepted)
     } else {
         (sel.current, Vec::new())
     };
@@ -1109,10 +1128,17 @@ pub fn diagnose_with_progress(
     // the accepted effects: on UTFSM 25mm0x5Hz its 0.52 left the final held-out RMS at
     // 73.7 N, against 68.6 N with no softness at all. Freed instead, it trades with a seal
     // friction (proving-ground seed 14: held-out gain 0.53 → 0.02).
+    // The refit must not predict the held-out blocks worse than the model the selection
+    // accepted: on proving-ground seed 14 (Papanastasiou fluid, inertia found) it fitted
+    // better and predicted 6.29 σ_F against 2.66 (baseline 6.09).
     if current.layout.effects != base.layout.effects {
         let mut unsoft = current.theta.clone();
         unsoft[current.layout.softness_index()] = 0.0;
-        current = crate::model::fit_best_of(&d, &current.layout, &[current.theta.clone(), unsoft]);
+        let refit =
+            crate::model::fit_best_of(&d, &current.layout, &[current.theta.clone(), unsoft]);
+        if refit.holdout_rmse(&d) <= current.holdout_rmse(&d) {
+            current = refit;
+        }
     }
     let findings = sel
         .accepted
@@ -1230,8 +1256,15 @@ fn interval_clear(fit: &Fit, e: Effect) -> bool {
 /// Withdraw accepted effects whose parameter, once later effects are in, has fallen back
 /// to its no-effect value (its interval no longer clear of it): an effect accepted early
 /// can be made redundant by a later one. The model is refitted without them.
+///
+/// The refit starts from the current parameters without the withdrawn effect, and from the
+/// baseline's with the remaining effects at their current values; the lower fitting SSE
+/// wins. (A withdrawn seal friction had taken its force out of every knot's F_y: from the
+/// current parameters alone, UTFSM 10mm1Hz ended at 50.14 N held-out, against 49.98 N
+/// found without the friction ever in.)
 fn prune(
     d: &Prepared,
+    base: &Fit,
     mut current: Fit,
     accepted: &mut Vec<(Effect, Evidence, Vec<BlockGain>)>,
 ) -> (Fit, Vec<String>) {
@@ -1243,8 +1276,20 @@ fn prune(
         let (e, _, _) = accepted.remove(pos);
         let mut lay = current.layout.clone();
         lay.effects.retain(|x| *x != e);
-        let theta = extend(&current.layout, &current.theta, &lay, &[]);
-        current = fit(d, &lay, &theta);
+        let kept: Vec<(Effect, Vec<f64>)> = lay
+            .effects
+            .iter()
+            .filter(|x| base.layout.index(**x).is_none())
+            .filter_map(|&x| {
+                let k = current.layout.index(x)?;
+                Some((x, current.theta[k..k + effect_params(x).len()].to_vec()))
+            })
+            .collect();
+        let starts = [
+            extend(&current.layout, &current.theta, &lay, &[]),
+            extend(&base.layout, &base.theta, &lay, &kept),
+        ];
+        current = crate::model::fit_best_of(d, &lay, &starts);
         withdrawn.push(format!(
             "{}: accepted in its round, but once the later effects were in its parameter's \
              95 % interval included the no-effect value; withdrawn and the model refitted",
