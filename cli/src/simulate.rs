@@ -159,6 +159,7 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
     let samples = run_stand(model.as_mut(), &programme, noise);
     let elapsed = start.elapsed();
     check_finite(&samples)?;
+    warn_solver_failures(&samples);
 
     let recording = to_recording(&samples, &args.out);
     let what = crate::convert::write_output(&args.out, &recording, &args.name)?;
@@ -287,6 +288,21 @@ pub fn check_finite(samples: &[SimulatedSample]) -> Result<()> {
             s.segment + 1
         ),
         None => Ok(()),
+    }
+}
+
+/// Say on stderr on how many samples the model's implicit solver did not converge (its
+/// state held for that step; [`twin::DamperOutput::solver_failed`]), and where first.
+fn warn_solver_failures(samples: &[SimulatedSample]) {
+    let mut failed = samples.iter().filter(|s| s.output.solver_failed);
+    if let Some(first) = failed.next() {
+        eprintln!(
+            "simulate: warning: the model's implicit solver did not converge on {} samples \
+             (first at t = {} s, segment {}); its state was held there: check the parameters",
+            1 + failed.count(),
+            first.time_s,
+            first.segment + 1
+        );
     }
 }
 

@@ -190,6 +190,9 @@ pub struct StreamCounters {
     pub gaps: u64,
     /// Accepted samples with a stuck channel.
     pub stuck: u64,
+    /// Stepped samples on which the model's implicit solver did not converge (its state
+    /// was held; [`twin::DamperOutput::solver_failed`]). Counted by the pipeline.
+    pub solver_failures: u64,
 }
 
 /// The conditioning state machine.

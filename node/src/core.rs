@@ -233,16 +233,26 @@ impl TwinCore {
     }
 
     /// The `twin model` check's level alone: WARN while offered parameters are refused.
-    fn model_level(&self) -> Level {
-        if self.model_state.refused.is_some() {
+    /// Samples since the report with counters `previous` on which the model's solver
+    /// failed.
+    fn new_solver_failures(&self, previous: &StreamCounters) -> u64 {
+        self.pipeline.counters().solver_failures - previous.solver_failures
+    }
+
+    /// The `twin model` check's level: WARN when new parameters were refused or the
+    /// model's solver failed since the report with counters `previous`.
+    fn model_level(&self, previous: &StreamCounters) -> Level {
+        if self.model_state.refused.is_some() || self.new_solver_failures(previous) > 0 {
             Level::Warn
         } else {
             Level::Ok
         }
     }
 
-    /// The `twin model` check: model, effects, parameter version, reloads.
-    fn model_check(&self) -> Check {
+    /// The `twin model` check: model, effects, parameter version, reloads, and the samples
+    /// on which the model's implicit solver failed (since the report with counters
+    /// `previous`, and in all).
+    fn model_check(&self, previous: &StreamCounters) -> Check {
         let m = &self.model_state;
         let model = self.pipeline.model_id();
         let effects = if m.effects.is_empty() {
@@ -250,7 +260,15 @@ impl TwinCore {
         } else {
             &m.effects
         };
+        let failures = self.new_solver_failures(previous);
         let (level, message) = match &m.refused {
+            None if failures > 0 => (
+                Level::Warn,
+                format!(
+                    "{model} ({effects}): the implicit solver did not converge on {failures} \
+                     samples since the last report (state held)"
+                ),
+            ),
             None => (
                 Level::Ok,
                 format!("{model} ({effects}), parameters {}", m.params_version),
@@ -273,6 +291,10 @@ impl TwinCore {
                 ("params_version".into(), m.params_version.clone()),
                 ("reloads".into(), m.reloads.to_string()),
                 ("refused".into(), m.refused.clone().unwrap_or_default()),
+                (
+                    "solver_failures".into(),
+                    self.pipeline.counters().solver_failures.to_string(),
+                ),
             ],
         }
     }
@@ -359,7 +381,7 @@ impl TwinCore {
         let level = worst([
             stream.level(),
             self.pipeline.health_level(),
-            self.model_level(),
+            self.model_level(&s.previous),
         ]);
         let periodic = s.next_diag_s.is_none_or(|next| t >= next);
         let resumed = s
@@ -418,7 +440,7 @@ impl TwinCore {
     fn diagnostics(&self, stamp_s: f64, stream: StreamState) -> DiagnosticArray {
         let mut checks = vec![stream.check()];
         checks.extend(self.pipeline.checks());
-        checks.push(self.model_check());
+        checks.push(self.model_check(&stream.previous));
         diagnostic_array(&self.cfg.node_name, &self.cfg.damper, stamp_s, &checks)
     }
 
@@ -434,7 +456,7 @@ impl TwinCore {
             worst([
                 self.schedule.level,
                 self.pipeline.health_level(),
-                self.model_level(),
+                self.model_level(&self.schedule.previous),
             ])
         }
     }
@@ -682,6 +704,59 @@ mod tests {
             .unwrap();
         assert_eq!(st.level, msgs::DiagnosticStatus::WARN);
         assert!(st.message.contains("restart"), "{}", st.message);
+    }
+
+    #[test]
+    fn a_solver_failure_is_counted_on_diagnostics_and_clears_a_period_later() {
+        let p = TwinNodeParams::default();
+        let mut core = TwinCore::new(&p, "/twin").unwrap();
+        let mut input = samples(3000, 1000.0);
+        // A finite but absurd rod speed passes the conditioning; the chamber solver cannot
+        // take the step (nor the next, which starts from it).
+        input[500].velocity_m_s = 1e150;
+        let model = |d: &DiagnosticArray| {
+            let s = d
+                .status
+                .iter()
+                .find(|s| s.name == "/twin: twin model")
+                .expect("a twin model check")
+                .clone();
+            let n = s
+                .values
+                .iter()
+                .find(|kv| kv.key == "solver_failures")
+                .expect("solver_failures")
+                .value
+                .clone();
+            (s.level, s.message, n)
+        };
+        let mut seen = Vec::new();
+        for s in &input {
+            if let Some(d) = core.on_sample(s, s.time_s).diagnostics {
+                seen.push((s.time_s, model(&d)));
+            }
+        }
+        assert_eq!(core.pipeline().counters().solver_failures, 2);
+        let before: Vec<_> = seen.iter().filter(|(t, _)| *t < 0.5).collect();
+        assert!(before
+            .iter()
+            .all(|(_, (l, _, n))| *l == msgs::DiagnosticStatus::OK && n == "0"));
+        // Reported in the next diagnostics (at once only when it changes the node's worst
+        // level; here the residual check of this unfitted twin is worse already).
+        let (_, (level, message, n)) = seen
+            .iter()
+            .find(|(t, _)| *t >= 0.5)
+            .expect("diagnostics after the failure");
+        assert_eq!(*level, msgs::DiagnosticStatus::WARN);
+        assert!(
+            message.contains("did not converge on 2 samples"),
+            "{message}"
+        );
+        assert_eq!(n, "2");
+        // A period after the last failure the check is OK again; the total stays.
+        let (_, (level, _, n)) = seen.last().unwrap();
+        assert_eq!(*level, msgs::DiagnosticStatus::OK);
+        assert_eq!(n, "2");
     }
 
     #[test]

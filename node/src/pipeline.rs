@@ -87,6 +87,8 @@ pub struct TwinPipeline {
     rod_area_m2: Option<f64>,
     /// Worst health level after the last sample.
     level: Level,
+    /// Samples on which the model's solver failed ([`DamperOutput::solver_failed`]).
+    solver_failures: u64,
 }
 
 /// The rod area \[m²\] when the model has a gas spring (its preload is read from the
@@ -114,6 +116,7 @@ impl TwinPipeline {
             last_input: None,
             rod_area_m2,
             level: Level::Stale,
+            solver_failures: 0,
             cfg,
         })
     }
@@ -157,7 +160,10 @@ impl TwinPipeline {
 
     /// Stream counters.
     pub fn counters(&self) -> StreamCounters {
-        self.conditioner.counters()
+        StreamCounters {
+            solver_failures: self.solver_failures,
+            ..self.conditioner.counters()
+        }
     }
 
     /// Samples the estimator rejected.
@@ -245,6 +251,19 @@ impl TwinPipeline {
                 self.model.step(&input, dt)
             }
         };
+        if output.solver_failed {
+            self.solver_failures += 1;
+            // Logged at the first failure and every 1000th; all are counted on
+            // /diagnostics (the `twin model` check).
+            if self.solver_failures % 1000 == 1 {
+                tracing::warn!(
+                    time_s = s.time_s,
+                    model = self.model.id(),
+                    failures = self.solver_failures,
+                    "the model's implicit solver did not converge; its state was held"
+                );
+            }
+        }
         let residual_n = s.force_n - output.force_n;
         let outcome = self.estimator.as_mut().map(|e| {
             let es = EstimatorSample {

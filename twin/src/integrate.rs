@@ -145,7 +145,8 @@ where
 }
 
 /// Integrate over \[θ0, θ1\] (length `h` seconds), halving the step where Newton fails,
-/// down to 2⁻¹⁰ of the original. Returns the last iterate if even that fails.
+/// down to 2⁻¹⁰ of the original. [`NotConverged`] if even that fails: the caller holds
+/// its state and reports it ([`crate::DamperOutput::solver_failed`]).
 pub fn trbdf2_adaptive<const N: usize, S: StiffSystem<N>>(
     sys: &S,
     y0: &Vector<N>,
@@ -153,7 +154,7 @@ pub fn trbdf2_adaptive<const N: usize, S: StiffSystem<N>>(
     theta1: f64,
     h: f64,
     tol: &Tolerance<N>,
-) -> Vector<N>
+) -> Result<Vector<N>, NotConverged>
 where
     Const<N>: LuDim,
 {
@@ -179,7 +180,7 @@ where
             }
         }
     }
-    go(sys, y0, theta0, theta1, h, tol, 0).unwrap_or(*y0)
+    go(sys, y0, theta0, theta1, h, tol, 0)
 }
 
 #[cfg(test)]
@@ -224,6 +225,35 @@ mod tests {
         // y = (λ² cos t + λ sin t)/(λ²+1) + C e^{−λt}, y(0) = 1.
         let p = |t: f64| (lambda * lambda * t.cos() + lambda * t.sin()) / (lambda * lambda + 1.0);
         p(t) + (1.0 - p(0.0)) * (-lambda * t).exp()
+    }
+
+    /// ẏ = f with no root for the implicit stages: f is NaN away from the start state.
+    struct Unsolvable;
+    impl StiffSystem<1> for Unsolvable {
+        fn rhs(&self, _theta: f64, y: &Vector<1>) -> (Vector<1>, Matrix<1>) {
+            let f = if y[0] == 1.0 { 1.0 } else { f64::NAN };
+            (Vector::<1>::new(f), Matrix::<1>::new(0.0))
+        }
+    }
+
+    #[test]
+    fn a_step_newton_cannot_take_is_an_error_not_the_start_state() {
+        let tol = Tolerance {
+            atol: Vector::<1>::new(1e-12),
+            rtol: 1e-12,
+        };
+        let y0 = Vector::<1>::new(1.0);
+        assert_eq!(
+            trbdf2_adaptive(&Unsolvable, &y0, 0.0, 1.0, 1e-3, &tol),
+            Err(NotConverged)
+        );
+        // A solvable system still integrates.
+        let sys = Relax {
+            lambda: 5.0,
+            t0: 0.0,
+            dt: 1e-3,
+        };
+        assert!(trbdf2_adaptive(&sys, &y0, 0.0, 1.0, 1e-3, &tol).is_ok());
     }
 
     #[test]

@@ -71,6 +71,9 @@ pub struct DamperOutput {
     pub fluid_temperature_c: f64,
     /// The current the fluid feels \[A\] (lags the coil current with field lag on).
     pub effective_current_a: f64,
+    /// The implicit solver ([`crate::integrate`]) did not converge on this step, even at
+    /// 2⁻¹⁰ of it: the state it integrates was held at the step's start.
+    pub solver_failed: bool,
 }
 
 /// A damper model stepped sample by sample.

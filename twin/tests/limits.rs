@@ -419,3 +419,29 @@ fn flow_blocking_does_not_chatter_at_the_sensor_rate() {
         }
     }
 }
+
+/// A step the chamber solver cannot take is reported on the output and holds the
+/// pressures; once the inputs are sane over a whole step it integrates again (the step
+/// after the bad sample still starts from it). A rod speed of 1e150 m/s is finite, so the
+/// node's conditioning passes it; the flow law's pressure drop overflows.
+#[test]
+fn a_step_the_solver_cannot_take_is_reported_and_the_next_one_recovers() {
+    let p = TwoChamberParams::default();
+    let mut m = TwoChamber::new(p, EffectSet::paper());
+    let at = |t: f64, v: f64| DamperInput {
+        displacement_m: 0.001 * t,
+        velocity_m_s: v,
+        current_a: 1.0,
+        ..Default::default()
+    };
+    m.step(&at(0.0, 0.01), 0.0);
+    let good = m.step(&at(0.001, 0.01), 0.001);
+    assert!(!good.solver_failed);
+    let bad = m.step(&at(0.002, 1e150), 0.001);
+    assert!(bad.solver_failed, "{bad:?}");
+    assert!(bad.force_n.is_finite(), "{bad:?}");
+    m.step(&at(0.003, 0.01), 0.001);
+    let after = m.step(&at(0.004, 0.01), 0.001);
+    assert!(!after.solver_failed, "{after:?}");
+    assert!(after.force_n.is_finite());
+}

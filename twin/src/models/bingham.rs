@@ -66,6 +66,8 @@ impl BinghamDamper {
             dissipated_energy_j: self.energy_j,
             fluid_temperature_c: inp.ambient_temperature_c,
             effective_current_a: inp.current_a,
+            // Algebraic: no solver to fail.
+            solver_failed: false,
         }
     }
 }

@@ -129,6 +129,7 @@ impl DirectShear {
             dissipated_energy_j: self.energy_j,
             fluid_temperature_c: inp.ambient_temperature_c,
             effective_current_a: inp.current_a,
+            solver_failed: false,
         }
     }
 }
@@ -159,6 +160,8 @@ impl DamperModel for DirectShear {
             rtol: 1e-10,
         };
         let mut power0 = self.power(&prev);
+        // A sub-step the solver cannot take even at 2⁻¹⁰ of it holds τ and is reported.
+        let mut solver_failed = false;
         for (from, to, h) in substeps(prev, *input, dt, n) {
             let sys = Shear {
                 params: &self.params,
@@ -166,12 +169,18 @@ impl DamperModel for DirectShear {
                 from,
                 to,
             };
-            self.tau = trbdf2_adaptive(&sys, &Vector::<1>::new(self.tau), 0.0, 1.0, h, &tol)[0];
+            match trbdf2_adaptive(&sys, &Vector::<1>::new(self.tau), 0.0, 1.0, h, &tol) {
+                Ok(s) => self.tau = s[0],
+                Err(_) => solver_failed = true,
+            }
             let power1 = self.power(&to);
             self.energy_j += 0.5 * h * (power0 + power1);
             power0 = power1;
         }
         self.prev = Some(*input);
-        self.output(input)
+        DamperOutput {
+            solver_failed,
+            ..self.output(input)
+        }
     }
 }

@@ -176,6 +176,7 @@ impl Spencer {
             dissipated_energy_j: self.energy_j,
             fluid_temperature_c: inp.ambient_temperature_c,
             effective_current_a: self.u / self.params.volts_per_amp,
+            solver_failed: false,
         }
     }
 }
@@ -208,6 +209,8 @@ impl DamperModel for Spencer {
             rtol: 1e-10,
         };
         let mut power0 = self.power(&prev);
+        // A sub-step the solver cannot take even at 2⁻¹⁰ of it holds (y, z) and is reported.
+        let mut solver_failed = false;
         for (from, to, h) in substeps(prev, *input, dt, n) {
             let cmd = self.params.volts_per_amp * 0.5 * (from.current_a + to.current_a).abs();
             self.u += (1.0 - (-self.params.eta * h).exp()) * (cmd - self.u);
@@ -217,14 +220,21 @@ impl DamperModel for Spencer {
                 from,
                 to,
             };
-            let s = trbdf2_adaptive(&sys, &Vector::<2>::new(self.y, self.z), 0.0, 1.0, h, &tol);
-            self.y = s[0];
-            self.z = s[1];
+            match trbdf2_adaptive(&sys, &Vector::<2>::new(self.y, self.z), 0.0, 1.0, h, &tol) {
+                Ok(s) => {
+                    self.y = s[0];
+                    self.z = s[1];
+                }
+                Err(_) => solver_failed = true,
+            }
             let power1 = self.power(&to);
             self.energy_j += 0.5 * h * (power0 + power1);
             power0 = power1;
         }
         self.prev = Some(*input);
-        self.output(input)
+        DamperOutput {
+            solver_failed,
+            ..self.output(input)
+        }
     }
 }

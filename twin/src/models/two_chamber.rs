@@ -34,7 +34,7 @@ use serde::{Deserialize, Serialize};
 use crate::effects::{Effect, EffectSet};
 use crate::fluid::{Bingham, BodnerPartom, HerschelBulkley};
 use crate::gap::{GapLaw, SlitFlow, SlitGap};
-use crate::integrate::{trbdf2_adaptive, Matrix, StiffSystem, Tolerance, Vector};
+use crate::integrate::{trbdf2_adaptive, Matrix, NotConverged, StiffSystem, Tolerance, Vector};
 use crate::model::{substep_count, substeps, DamperInput, DamperModel, DamperOutput};
 use crate::models::quadratic_in_current;
 
@@ -243,6 +243,8 @@ pub struct TwoChamber {
     last_force_power: (f64, f64),
     /// The last sub-step switched between blocked and flowing: refine the next one.
     refine_next: bool,
+    /// The chamber solver failed in the last step (pressures held).
+    solver_failed: bool,
     prev: Option<DamperInput>,
 }
 
@@ -293,6 +295,7 @@ impl TwoChamber {
             energy_j: 0.0,
             last_force_power: (0.0, 0.0),
             refine_next: false,
+            solver_failed: false,
             prev: None,
         }
     }
@@ -398,22 +401,34 @@ impl TwoChamber {
             let dpy = flow.yield_pressure();
             let flowing = |y: &Vector<2>| (y[0] - y[1]).abs() > dpy;
             let uniform = |m: &Self| {
-                substeps(*from, *to, h, REFINE).fold(y0, |y, (a, b, hk)| {
+                substeps(*from, *to, h, REFINE).try_fold(y0, |y, (a, b, hk)| {
                     m.integrate_chambers(&y, &a, &b, hk, &flow)
                 })
             };
-            let mut y = if self.refine_next {
+            let first = if self.refine_next {
                 uniform(self)
             } else {
                 self.integrate_chambers(&y0, from, to, h, &flow)
             };
-            let switched = dpy > 0.0 && flowing(&y0) != flowing(&y);
-            if switched && !self.refine_next {
-                y = uniform(self);
+            let y = first.and_then(|y| {
+                let switched = dpy > 0.0 && flowing(&y0) != flowing(&y);
+                let y = if switched && !self.refine_next {
+                    uniform(self)?
+                } else {
+                    y
+                };
+                Ok((y, switched))
+            });
+            // A sub-step the solver cannot take even at 2⁻¹⁰ of it holds the pressures
+            // and is reported, not hidden.
+            match y {
+                Ok((y, switched)) => {
+                    self.refine_next = switched;
+                    self.p1 = y[0];
+                    self.p2 = y[1];
+                }
+                Err(NotConverged) => self.solver_failed = true,
             }
-            self.refine_next = switched;
-            self.p1 = y[0];
-            self.p2 = y[1];
         } else {
             self.p2 = self.incompressible_gas_pressure(to.displacement_m);
             let q = self.params.annulus_area() * to.velocity_m_s;
@@ -432,7 +447,7 @@ impl TwoChamber {
         to: &DamperInput,
         h: f64,
         flow: &SlitFlow,
-    ) -> Vector<2> {
+    ) -> Result<Vector<2>, NotConverged> {
         const MIN_SUBSTEP_S: f64 = 2.0e-5;
         let sys = Chambers {
             m: self,
@@ -444,15 +459,15 @@ impl TwoChamber {
             atol: Vector::<2>::new(1.0, 1.0),
             rtol: 1e-9,
         };
-        let y1 = trbdf2_adaptive(&sys, y0, 0.0, 1.0, h, &tol);
+        let y1 = trbdf2_adaptive(&sys, y0, 0.0, 1.0, h, &tol)?;
         let dpy = flow.yield_pressure();
         let flowing = |y: &Vector<2>| (y[0] - y[1]).abs() > dpy;
         if dpy > 0.0 && flowing(y0) != flowing(&y1) && h > 2.0 * MIN_SUBSTEP_S {
             let mid = from.lerp(to, 0.5);
-            let ym = self.integrate_chambers(y0, from, &mid, 0.5 * h, flow);
+            let ym = self.integrate_chambers(y0, from, &mid, 0.5 * h, flow)?;
             return self.integrate_chambers(&ym, &mid, to, 0.5 * h, flow);
         }
-        y1
+        Ok(y1)
     }
 
     fn output(&self) -> DamperOutput {
@@ -463,6 +478,7 @@ impl TwoChamber {
             dissipated_energy_j: self.energy_j,
             fluid_temperature_c: self.temperature_c,
             effective_current_a: self.current_eff,
+            solver_failed: self.solver_failed,
         }
     }
 }
@@ -481,6 +497,7 @@ impl DamperModel for TwoChamber {
         self.temperature_c = input.ambient_temperature_c;
         self.energy_j = 0.0;
         self.refine_next = false;
+        self.solver_failed = false;
         if self.effects.has(Effect::FluidCompressibility) {
             let p0 = self.gas_pressure_at_rest();
             self.p1 = p0;
@@ -498,6 +515,7 @@ impl DamperModel for TwoChamber {
             self.reset(input);
             return self.output();
         };
+        self.solver_failed = false;
         let n = substep_count(dt, self.params.max_substep_s);
         let mut power0 = self.last_force_power.1;
         for (from, to, h) in substeps(prev, *input, dt, n) {
