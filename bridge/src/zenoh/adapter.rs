@@ -64,8 +64,6 @@ pub struct ZenohTransport {
     session: Session,
     publishers: HashMap<Topic, Publisher<'static>>,
     subscribers: Vec<(Topic, Subscriber<FifoChannelHandler<Sample>>)>,
-    /// Messages that arrived but did not decode (counted, not fatal).
-    pub undecodable: u64,
 }
 
 impl ZenohTransport {
@@ -105,7 +103,6 @@ impl ZenohTransport {
             session,
             publishers,
             subscribers,
-            undecodable: 0,
         })
     }
 
@@ -120,27 +117,42 @@ impl Transport for ZenohTransport {
         NAME
     }
 
+    /// As the ROS 2 and iceoryx2 adapters: a topic not among the adapter's publications is
+    /// an error.
     fn publish(&mut self, msg: &Message) -> Result<(), TransportError> {
         let topic = msg.topic();
-        let Some(p) = self.publishers.get(&topic) else {
-            return Ok(());
-        };
+        let context = || format!("publish on {}", topic.key());
+        let p = self.publishers.get(&topic).ok_or_else(|| {
+            TransportError::new(
+                NAME,
+                context(),
+                "topic not among this adapter's publications",
+            )
+        })?;
         p.put(msg.to_cdr())
             .wait()
-            .map_err(|e| TransportError::new(NAME, format!("publish on {}", topic.key()), e))
+            .map_err(|e| TransportError::new(NAME, context(), e))
     }
 
+    /// As the ROS 2 adapter: what arrived before a failure is appended, the failure is
+    /// returned (a payload that does not decode is dropped with it; a closed channel is
+    /// an error), and the rest waits for the next call.
     fn poll(&mut self, out: &mut Vec<Message>) -> Result<(), TransportError> {
         for (topic, sub) in &self.subscribers {
-            while let Ok(Some(sample)) = sub.try_recv() {
+            let context = || format!("receive on {}", sub.key_expr());
+            while let Some(sample) = sub
+                .try_recv()
+                .map_err(|e| TransportError::new(NAME, context(), e))?
+            {
                 let bytes = sample.payload().to_bytes();
-                match Message::from_cdr(*topic, &bytes) {
-                    Ok(m) => out.push(m),
-                    Err(e) => {
-                        tracing::warn!(key = %sample.key_expr(), error = %e, "undecodable payload dropped");
-                        self.undecodable += 1;
-                    }
-                }
+                let m = Message::from_cdr(*topic, &bytes).map_err(|e| {
+                    TransportError::new(
+                        NAME,
+                        format!("decode {} from {}", topic.key(), sample.key_expr()),
+                        e,
+                    )
+                })?;
+                out.push(m);
             }
         }
         Ok(())
@@ -150,6 +162,52 @@ impl Transport for ZenohTransport {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The same contract as the ROS 2 and iceoryx2 adapters: wrong use and bad payloads are
+    /// errors that name the topic, and what arrived before them is kept.
+    #[test]
+    fn undeclared_topics_and_undecodable_payloads_are_errors() {
+        let cfg = ZenohConfig {
+            listen: vec!["tcp/127.0.0.1:0".into()],
+            multicast_scouting: false,
+            key_prefix: "mrtwin_it_adapter_errors".into(),
+            ..Default::default()
+        };
+        let mut t = ZenohTransport::new(
+            &cfg,
+            "d1",
+            &[Topic::PredictedForce],
+            &[Topic::PredictedForce],
+        )
+        .unwrap();
+        let e = t
+            .publish(&Message::Clock(msgs::Clock::default()))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("clock") && e.contains("not among"), "{e}");
+        // A good message, then a payload that is not CDR of a Float64 (the session
+        // delivers its own publications to its own subscribers).
+        t.publish(&Message::PredictedForce(msgs::Float64 { data: 2.5 }))
+            .unwrap();
+        let key = cfg.key("d1", Topic::PredictedForce);
+        t.session.put(key.clone(), vec![1u8, 2]).wait().unwrap();
+        let mut out = Vec::new();
+        let mut err = None;
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+        while err.is_none() && std::time::Instant::now() < deadline {
+            if let Err(e) = t.poll(&mut out) {
+                err = Some(e.to_string());
+            }
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+        let e = err.expect("the bad payload is reported within 10 s");
+        assert!(e.contains("decode") && e.contains(&key), "{e}");
+        assert_eq!(
+            out,
+            vec![Message::PredictedForce(msgs::Float64 { data: 2.5 })]
+        );
+        t.close();
+    }
 
     #[test]
     fn endpoints_of_links_not_built_in_are_named() {
