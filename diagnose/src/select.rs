@@ -603,12 +603,21 @@ fn judge(
 fn explanation(e: Effect, p: &BTreeMap<String, Parameter>) -> String {
     let g = |k: &str| p.get(k).map(|x| x.value).unwrap_or(f64::NAN);
     match e {
-        Effect::SealFriction => format!(
-            "a force step of {:.1} N at every velocity reversal, the same at every current: \
-             Coulomb friction of seals and guides, which the Bingham yield force (scaling with \
-             the fluid's shape law at each current) does not reproduce",
-            g("friction_force")
-        ),
+        Effect::SealFriction => {
+            let xp_mm = g("presliding_displacement");
+            let presliding = if xp_mm >= 1e-3 {
+                format!(", taken up over {xp_mm:.3} mm of travel after it (presliding, Dahl)")
+            } else {
+                String::new()
+            };
+            format!(
+                "a force step of {:.1} N at every velocity reversal, the same at every \
+                 current{presliding}: Coulomb friction of seals and guides, which the Bingham \
+                 yield force (scaling with the fluid's shape law at each current) does not \
+                 reproduce",
+                g("friction_force")
+            )
+        }
         Effect::GasSpring => format!(
             "a stiffness of {:.3} N/mm present at every current, pushing the rod out harder \
              the further it is in: the gas accumulator's spring (its preload −p0 Ar cannot be \
