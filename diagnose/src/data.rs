@@ -127,6 +127,8 @@ pub struct Prepared {
     pub friction_velocity: f64,
     /// Peak speed of the record \[m/s\] (scale of the curvature term).
     pub velocity_scale: f64,
+    /// Half the displacement's range \[m\] (the stroke amplitude of a symmetric record).
+    pub half_stroke_m: f64,
     /// What the measurement model found.
     pub measurement: crate::measure::MeasurementSummary,
     /// How the data were split.
@@ -794,6 +796,9 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
     };
     let leak_velocity_min = crate::measure::LEAK_PER_SIGMA * m.summary.rebuilt_velocity_sigma_m_s;
     let friction_velocity = (0.01 * vpeak).max(leak_velocity_min);
+    let half_stroke_m = 0.5
+        * (x.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+            - x.iter().copied().fold(f64::INFINITY, f64::min));
     let mut prepared = Prepared {
         t,
         x,
@@ -822,6 +827,7 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
         blocks,
         friction_velocity,
         velocity_scale: vpeak,
+        half_stroke_m,
         measurement: m.summary,
         split_method,
     };

@@ -247,9 +247,7 @@ pub const XP_MAX: f64 = 2e-4;
 
 /// The presliding bound for this record: [`XP_MAX`], or half the stroke if shorter.
 pub fn xp_max(d: &Prepared) -> f64 {
-    let lo = d.x.iter().copied().fold(f64::INFINITY, f64::min);
-    let hi = d.x.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    XP_MAX.min(0.5 * (hi - lo)).max(2.0 * XP_MIN)
+    XP_MAX.min(d.half_stroke_m).max(2.0 * XP_MIN)
 }
 
 /// 1 where the presliding displacement is above its bound (its derivative counts), else 0.
@@ -479,8 +477,8 @@ fn evaluate_at(d: &Prepared, inp: &Channels, lay: &Layout, theta: &[f64], jac: b
                 let xp = theta[q + 1].max(XP_MIN);
                 let dx = v.abs() * h;
                 let e = (-dx / xp).exp();
-                let held = xp_free(theta[q + 1]);
-                dahl_ds = e * dahl_ds + held * (dahl_s - sg) * e * dx / (xp * xp);
+                let free = xp_free(theta[q + 1]);
+                dahl_ds = e * dahl_ds + free * (dahl_s - sg) * e * dx / (xp * xp);
                 dahl_s = sg + (dahl_s - sg) * e;
             } else {
                 dahl_s = sg;
@@ -910,6 +908,21 @@ mod tests {
         prepare(&s).expect("valid record")
     }
 
+    /// The baseline alone on `record()`: knots' F_y and c, no offset, a 4 mm/s leak, no
+    /// relative leak, softness or curvature. Its layout, parameters and force.
+    fn bare_baseline(d: &Prepared) -> (Layout, Vec<f64>, Vec<f64>) {
+        let base = Layout {
+            nk: d.knots.len(),
+            effects: vec![],
+            soft: true,
+        };
+        let th = vec![
+            250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 0.0, 0.004, 0.0, 0.0, 0.0, 0.0, 0.0,
+        ];
+        let f0 = evaluate(d, &base, &th, false).force;
+        (base, th, f0)
+    }
+
     #[test]
     fn jacobian_matches_finite_differences_with_every_effect() {
         let d = record();
@@ -955,15 +968,7 @@ mod tests {
     #[allow(clippy::needless_range_loop)]
     fn dahl_friction_is_the_smoothed_step_without_presliding_and_lags_by_its_displacement() {
         let d = record();
-        let base = Layout {
-            nk: d.knots.len(),
-            effects: vec![],
-            soft: true,
-        };
-        let th = vec![
-            250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 0.0, 0.004, 0.0, 0.0, 0.0, 0.0, 0.0,
-        ];
-        let f0 = evaluate(&d, &base, &th, false).force;
+        let (base, th, f0) = bare_baseline(&d);
         let lay = base.with(Effect::SealFriction);
         let fc = 100.0;
         let s_at = |xp: f64| {
@@ -1026,15 +1031,7 @@ mod tests {
     #[test]
     fn compliance_to_zero_gives_the_incompressible_baseline() {
         let d = record();
-        let base = Layout {
-            nk: d.knots.len(),
-            effects: vec![],
-            soft: true,
-        };
-        let th = vec![
-            250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 0.0, 0.004, 0.0, 0.0, 0.0, 0.0, 0.0,
-        ];
-        let f0 = evaluate(&d, &base, &th, false).force;
+        let (base, th, f0) = bare_baseline(&d);
         let lay = base.with(Effect::FluidCompressibility);
         let mut tc = th.clone();
         tc.push(1e-12);

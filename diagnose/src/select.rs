@@ -464,11 +464,7 @@ pub fn fit_candidate(d: &Prepared, current: &Fit, e: Effect) -> Fit {
 pub fn fit_candidate_limited(d: &Prepared, current: &Fit, e: Effect, max_iter: usize) -> Fit {
     let lay = current.layout.with(e);
     let fpeak = d.f.iter().fold(0.0f64, |m, x| m.max(x.abs())).max(1e-9);
-    let xr = {
-        let lo = d.x.iter().copied().fold(f64::INFINITY, f64::min);
-        let hi = d.x.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        (0.5 * (hi - lo)).max(1e-6)
-    };
+    let xr = d.half_stroke_m.max(1e-6);
     let starts: Vec<Vec<f64>> = match e {
         Effect::FieldLag => vec![vec![0.003], vec![0.01], vec![0.03]],
         Effect::FluidCompressibility => [0.002, 0.01, 0.05]
@@ -477,8 +473,7 @@ pub fn fit_candidate_limited(d: &Prepared, current: &Fit, e: Effect, max_iter: u
             .collect(),
         // A Dahl friction of F_c taken from every knot's yield force (a Coulomb force is
         // in them while the candidate is out), at presliding displacements of 10, 30 and
-        // 100 µm; from
-        // F_c = 0 the presliding displacement would have no gradient.
+        // 100 µm; from F_c = 0 the presliding displacement would have no gradient.
         Effect::SealFriction => {
             let fy_min = current.theta[..current.layout.nk]
                 .iter()

@@ -76,8 +76,7 @@ fn speed_current(d: &Prepared) -> Grouping {
 
 fn position_direction(d: &Prepared) -> Grouping {
     let lo = d.x.iter().copied().fold(f64::INFINITY, f64::min);
-    let hi = d.x.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    let span = (hi - lo).max(1e-12);
+    let span = (2.0 * d.half_stroke_m).max(1e-12);
     let mut names = Vec::new();
     for dir in ["compression", "rebound"] {
         for b in 0..8 {

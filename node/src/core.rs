@@ -232,15 +232,14 @@ impl TwinCore {
         Ok(Reloaded { estimator_kept })
     }
 
-    /// The `twin model` check's level alone: WARN while offered parameters are refused.
     /// Samples since the report with counters `previous` on which the model's solver
     /// failed.
     fn new_solver_failures(&self, previous: &StreamCounters) -> u64 {
         self.pipeline.counters().solver_failures - previous.solver_failures
     }
 
-    /// The `twin model` check's level: WARN when new parameters were refused or the
-    /// model's solver failed since the report with counters `previous`.
+    /// The `twin model` check's level alone: WARN while offered parameters are refused or
+    /// when the model's solver failed since the report with counters `previous`.
     fn model_level(&self, previous: &StreamCounters) -> Level {
         if self.model_state.refused.is_some() || self.new_solver_failures(previous) > 0 {
             Level::Warn
