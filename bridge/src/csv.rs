@@ -481,7 +481,24 @@ pub fn parse_csv(text: &str, source: &str) -> Result<Recording, RecordingError> 
     if velocity_derived {
         let t: Vec<f64> = samples.iter().map(|s| s.time_s).collect();
         let x: Vec<f64> = samples.iter().map(|s| s.displacement_m).collect();
-        for (s, v) in samples.iter_mut().zip(derive_velocity(&t, &x)) {
+        for ((s, v), &line) in samples
+            .iter_mut()
+            .zip(derive_velocity(&t, &x))
+            .zip(&sample_lines)
+        {
+            // Time steps that are all but zero, or near f64::MAX, overflow the difference
+            // quotient: a recording with an infinite velocity would not even write back.
+            if !v.is_finite() {
+                return Err(RecordingError::Format {
+                    file: source.to_owned(),
+                    line,
+                    message: format!(
+                        "the velocity derived from {COL_TIME} and {COL_DISPLACEMENT} is {v} \
+                         (the time steps around this line are too small or too large); fix \
+                         {COL_TIME} or give a {COL_VELOCITY} column"
+                    ),
+                });
+            }
             s.velocity_m_s = v;
         }
     }
@@ -767,6 +784,33 @@ mod tests {
         );
         assert!(msg.contains("must be in metres"), "{msg}");
         assert!(msg.contains("millimetres"), "{msg}");
+    }
+
+    /// Found by the fuzzer (issue 15, `fuzz-parsers --parser csv --seed 1`, input
+    /// 613356): a jump of the time to 6e307 s made the derived velocity infinite; the
+    /// recording was accepted and did not read back once written.
+    #[test]
+    fn an_infinite_derived_velocity_is_an_error_naming_its_line() {
+        let fuzzed = "   force_N,displacement_m,temperature_C,time_s,current_A\r\n \
+            -3.2486469033610765e-1 ,0.002,-431191279,0.1269407616409118,-6.108939297149712E4\r\n\
+            -6.078106174760445e5,0.0001963452625883595,-649.0499376730381,0.19712918673731378,\
+            -0.008573099737098694\r\n+0, -0.30692458685406754 , 15291.788241528193 \
+            ,0.2944254807099705, 0 \r\n     -866371201.4390119, -0.7792976828803588 ,-0e0,\
+            0.3742079126389154,-6634000.08014297\r\n-0.00000000433592322399891,-0.007,  \
+            ,0.4531090265207979,-4.0863244E7\r\n+0,0.088,, 0.598722078111e308,-6.374226790963";
+        let msg = err(fuzzed);
+        assert!(
+            msg.starts_with(
+                "rec.csv line 6: the velocity derived from time_s and displacement_m is inf"
+            ),
+            "{msg}"
+        );
+        // Subnormal time steps overflow the quotient too.
+        let msg = err(&format!("{HEADER}\n0,0,0,0\n5e-324,0.5,0,0\n"));
+        assert!(
+            msg.starts_with("rec.csv line 2: the velocity derived"),
+            "{msg}"
+        );
     }
 
     #[test]

@@ -415,8 +415,8 @@ pub fn parse_raw(
     }
     let header = parse_raw_header(&lines, source)?;
 
-    // Each segment: (sample number, CHANNEL0 V, CHANNEL1 V) rows.
-    let mut segments: Vec<Vec<(u64, f64, f64)>> = vec![Vec::new()];
+    // Each segment: (sample number, CHANNEL0 V, CHANNEL1 V, line) rows.
+    let mut segments: Vec<Vec<(u64, f64, f64, usize)>> = vec![Vec::new()];
     let mut previous: Option<(u64, usize)> = None;
     let mut rows = 0;
     let mut blank_line = None;
@@ -482,7 +482,7 @@ pub fn parse_raw(
             continue;
         }
         if let Some(segment) = segments.last_mut() {
-            segment.push((number, ch0, ch1));
+            segment.push((number, ch0, ch1, line));
         }
         if event == "DAQ Pause" {
             segments.push(Vec::new());
@@ -506,39 +506,45 @@ pub fn parse_raw(
         });
     }
 
-    Ok(segments
+    segments
         .iter()
         .zip(CURRENT_LEVELS_A)
         .enumerate()
-        .map(|(k, (rows, current_a))| RawSegment {
-            current_a,
-            recording: build_segment(
-                rows,
+        .map(|(k, (rows, current_a))| {
+            Ok(RawSegment {
                 current_a,
-                header.interval_s,
-                layout,
-                &format!(
-                    "{source} segment {} of {} ({current_a} A)",
-                    k + 1,
-                    CURRENT_LEVELS_A.len()
-                ),
-            ),
+                recording: build_segment(
+                    rows,
+                    current_a,
+                    header.interval_s,
+                    layout,
+                    source,
+                    &format!(
+                        "{source} segment {} of {} ({current_a} A)",
+                        k + 1,
+                        CURRENT_LEVELS_A.len()
+                    ),
+                )?,
+            })
         })
-        .collect())
+        .collect()
 }
 
-/// Scales one segment's raw rows to SI and derives the velocity.
+/// Scales one segment's raw rows (with their lines in `file`) to SI and derives the
+/// velocity; a value that is not finite once scaled (volts near f64::MAX, a huge sampling
+/// interval) is an error naming its line.
 fn build_segment(
-    rows: &[(u64, f64, f64)],
+    rows: &[(u64, f64, f64, usize)],
     current_a: f64,
     interval_s: f64,
     layout: ChannelLayout,
+    file: &str,
     source: &str,
-) -> Recording {
+) -> Result<Recording, RecordingError> {
     let first = rows.first().map_or(0, |r| r.0);
     let mut samples: Vec<Sample> = rows
         .iter()
-        .map(|&(number, ch0, ch1)| {
+        .map(|&(number, ch0, ch1, _)| {
             let (force_v, displacement_v) = match layout {
                 ChannelLayout::ForceOnChannel0 => (ch0, ch1),
                 ChannelLayout::DisplacementOnChannel0 => (ch1, ch0),
@@ -555,15 +561,33 @@ fn build_segment(
         .collect();
     let t: Vec<f64> = samples.iter().map(|s| s.time_s).collect();
     let x: Vec<f64> = samples.iter().map(|s| s.displacement_m).collect();
-    for (s, v) in samples.iter_mut().zip(derive_velocity(&t, &x)) {
+    for ((s, v), row) in samples.iter_mut().zip(derive_velocity(&t, &x)).zip(rows) {
         s.velocity_m_s = v;
+        let scaled = [
+            ("time", s.time_s, "s"),
+            ("displacement", s.displacement_m, "m"),
+            ("velocity", s.velocity_m_s, "m/s"),
+            ("force", s.force_n, "N"),
+        ];
+        if let Some((name, value, unit)) = scaled.into_iter().find(|(_, v, _)| !v.is_finite()) {
+            return Err(format_err(
+                file,
+                row.3,
+                format!(
+                    "sample {}: the {name} is {value} {unit} once scaled (CHANNEL0 {:e} V, \
+                     CHANNEL1 {:e} V, Sampling Interval {interval_s:e} s); the values are out \
+                     of range",
+                    row.0, row.1, row.2
+                ),
+            ));
+        }
     }
-    Recording {
+    Ok(Recording {
         samples,
         velocity_derived: true,
         has_temperature: false,
         source: source.to_owned(),
-    }
+    })
 }
 
 #[cfg(test)]
@@ -796,6 +820,32 @@ mod tests {
         parse_raw(text, "ME2mm5Hz.txt", ChannelLayout::ForceOnChannel0)
             .expect_err("expected an error")
             .to_string()
+    }
+
+    /// Found by the fuzzer (issue 15, `fuzz-parsers --parser utfsm-raw --seed 2`, input
+    /// 99211): 1e308 V on CHANNEL0 is finite, the force it scales to (× 980.665 N/V) is
+    /// not; the file was accepted with an infinite force.
+    #[test]
+    fn a_value_that_overflows_once_scaled_is_an_error_naming_its_line() {
+        let fuzzed = "Header Size: 7\r\nSampling Interval: 1e-3\r\nSample Count: 9\r\n\
+            Start: 11/07/2019\r\nChannels: 2\r\nUnits: V\r\n\
+            Sample Number, Date/Time, CHANNEL0, CHANNEL1, Events\r\n\
+            0, 11/07/2019 10:00:00.295, -5.198290120629975e0, -8.936789837498162, \r\n\
+            1, 11/07/2019 10:00:00.826, 8.740145170347269, -4.703160700509419e0, DAQ Resume\r\n\
+            2, x, NaN, NaN, \r\n\
+            3, 11/07/2019 10:00:00.241, 1e308, 8.015, \r\n\
+            4, 11/07/2019 10:00:00.219, 2.9645720250974996, 5.266452600499143e-1, \r\n\
+            NaN, NaN, NaN, NaN\r\n\
+            5, 11/07/2019 10:00:00.044, 9.782265570873218, -4.890543281403579E0, \r\n\
+            7, x, NaN, NaN, \r\n\
+            8, 11/07/2019 10:00:00.671, 2.020210300007113, 2.381433167553027e0, \r\n";
+        assert_eq!(
+            parse_raw(fuzzed, "ME25mm0x5Hz.txt", ChannelLayout::ForceOnChannel0)
+                .expect_err("an infinite force")
+                .to_string(),
+            "ME25mm0x5Hz.txt line 11: sample 3: the force is inf N once scaled (CHANNEL0 1e308 \
+             V, CHANNEL1 8.015e0 V, Sampling Interval 1e-3 s); the values are out of range"
+        );
     }
 
     #[test]

@@ -625,3 +625,33 @@ fn committed_fixtures_read_back() {
         .fold(0.0, f64::max);
     assert!(peak > 100.0, "peak force {peak} N");
 }
+
+/// Found by the fuzzer (issue 15, `fuzz-parsers --parser bag-mcap --seed 1`, input 2761):
+/// a file with two channels of one topic name and two types (`DamperSample` and
+/// `Float64` on `sensor/sample`). The reader took the first channel's type for every
+/// message of the name and failed to decode the other channel's messages; each channel is
+/// now read as its own type (the `Float64` one is not an mrtwin topic and is skipped).
+#[test]
+fn one_topic_name_with_two_types_reads_each_as_its_own() {
+    let file = fixtures_dir().join("fuzz/two-types-on-one-topic.mcap");
+    let c = read_bag(&file).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(c.message_count(), 5);
+    let listing: Vec<(&str, &str, u64, Option<Topic>)> = c
+        .topics
+        .iter()
+        .map(|t| (t.name.as_str(), t.type_name.as_str(), t.count, t.known))
+        .collect();
+    let sample = Some(Topic::Sample);
+    assert_eq!(
+        listing,
+        [
+            ("sensor/sample", DamperSample::TYPE_NAME, 1, sample),
+            ("sensor/sample", Float64::TYPE_NAME, 2, None),
+            ("/d1/sensor/sample", "", 1, None),
+            ("/d1/sensor/sample", DamperSample::TYPE_NAME, 1, sample),
+        ]
+    );
+    assert_eq!(c.messages.len(), 2);
+    assert_eq!(c.skipped.len(), 2);
+    assert_eq!(c.skipped[0].type_name, Float64::TYPE_NAME);
+}

@@ -22,6 +22,8 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 use serde_norway::Value;
 
+use crate::locate::{display_path, Seg, SourceText};
+use crate::overrides::valid_param_name;
 use crate::{parse_params, ConfigError};
 
 /// A launch file.
@@ -132,31 +134,88 @@ pub fn load_launch(path: &Path) -> Result<LaunchFile, ConfigError> {
 }
 
 /// Parse and check the text of a launch file; `source` names it in errors.
+///
+/// Beyond the types, each node must be `pkg: mrtwin` with `exec` stand, twin or record,
+/// and everything that becomes its `--ros-args` must be what [`crate::parse_ros_args`]
+/// reads back as written: a non-empty `name` and `namespace`, parameter names without
+/// empty `.`-separated parts or `:=`, remappings between non-empty names (`from` without
+/// `:=`).
+/// Errors name the file, the entry (`launch[0].node.param[1]`) and its line.
 pub fn parse_launch(text: &str, source: &str) -> Result<LaunchFile, ConfigError> {
     let file: LaunchFile = parse_params(text, source, "/launch")?;
+    let lines = SourceText::new(text);
     for (i, LaunchEntry { node: n }) in file.launch.iter().enumerate() {
-        let bad = |message: String| ConfigError::Structure {
-            file: source.to_string(),
-            line: None,
-            message: format!("launch[{i}].node: {message}"),
+        // `launch[i].node.<field>[index]`, with the line of the deepest part found.
+        let bad = |field: &str, index: Option<usize>, message: String| {
+            let mut path = vec![
+                Seg::Key("launch".into()),
+                Seg::Index(i),
+                Seg::Key("node".into()),
+            ];
+            path.push(Seg::Key(field.into()));
+            path.extend(index.map(Seg::Index));
+            ConfigError::Structure {
+                file: source.to_string(),
+                line: lines.locate(&path).1,
+                message: format!("{}: {message}", display_path(&path)),
+            }
         };
         if n.pkg != "mrtwin" {
-            return Err(bad(format!("pkg '{}' is not mrtwin", n.pkg)));
+            return Err(bad("pkg", None, format!("pkg '{}' is not mrtwin", n.pkg)));
         }
         if !["stand", "twin", "record"].contains(&n.exec.as_str()) {
-            return Err(bad(format!(
-                "exec '{}' is not stand, twin or record",
-                n.exec
-            )));
+            return Err(bad(
+                "exec",
+                None,
+                format!("exec '{}' is not stand, twin or record", n.exec),
+            ));
         }
-        for p in &n.param {
+        if n.name
+            .as_deref()
+            .is_some_and(|v| v.trim_matches('/').is_empty())
+        {
+            return Err(bad("name", None, "the node name must not be empty".into()));
+        }
+        if n.namespace.as_deref().is_some_and(str::is_empty) {
+            return Err(bad(
+                "namespace",
+                None,
+                "the namespace must not be empty (the root is `/`)".into(),
+            ));
+        }
+        for (j, p) in n.param.iter().enumerate() {
             match (&p.from, &p.name, &p.value) {
-                (Some(_), None, None) | (None, Some(_), Some(_)) => {}
+                (Some(_), None, None) => {}
+                (None, Some(name), Some(_)) => {
+                    if !valid_param_name(name) || name.contains(":=") {
+                        return Err(bad(
+                            "param",
+                            Some(j),
+                            format!(
+                                "parameter name '{name}' must not be empty, have empty `.`-separated parts or contain `:=`"
+                            ),
+                        ));
+                    }
+                }
                 _ => {
                     return Err(bad(
+                        "param",
+                        Some(j),
                         "each param is either {from: FILE} or {name: N, value: V}".into(),
                     ))
                 }
+            }
+        }
+        for (j, r) in n.remap.iter().enumerate() {
+            if r.from.is_empty() || r.from.contains(":=") || r.to.is_empty() {
+                return Err(bad(
+                    "remap",
+                    Some(j),
+                    format!(
+                        "remap from '{}' to '{}': neither may be empty, nor `from` contain `:=`",
+                        r.from, r.to
+                    ),
+                ));
             }
         }
     }
@@ -202,5 +261,61 @@ mod tests {
         let bad = GOOD.replace("exec: twin", "exec: nope");
         let e = parse_launch(&bad, "l.yaml").unwrap_err().to_string();
         assert!(e.contains("exec 'nope'"), "{e}");
+    }
+
+    /// Found by the fuzzer (issue 15, `fuzz-parsers --parser launch --seed 1`, input
+    /// 13559): a parameter name with an empty `.` part was accepted, and the node then
+    /// refused the `-p` argument the launch file made of it.
+    #[test]
+    fn what_the_node_would_refuse_is_an_error_with_its_line() {
+        let fuzzed = "launch:\n- node:\n    pkg: mrtwin\n    exec: record\n    name: stand\n    \
+                      namespace: /a/b\n    param:\n    - from: /abs.yaml\n    - from: \
+                      ../cfg/twin.yaml\n    remap:\n    - from: sensor/sample\n      to: \
+                      rig/sample\n- node:\n    pkg: mrtwin\n    exec: record\n    namespace: \
+                      /lab\n    param:\n    - from: p.yaml\n    - name: \
+                      two.._chamber.bulk_modulus_pa\n      value: all\n    remap:\n    - \
+                      from: sensor/sample\n      to: rig/sample\n";
+        let e = parse_launch(fuzzed, "l.yaml").unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "l.yaml line 19: launch[1].node.param[1]: parameter name \
+             'two.._chamber.bulk_modulus_pa' must not be empty, have empty `.`-separated parts \
+             or contain `:=`"
+        );
+        for (from, to, wanted) in [
+            (
+                "      name: t\n",
+                "      name: ''\n",
+                "line 5: launch[0].node.name:",
+            ),
+            (
+                "namespace: /lab",
+                "namespace: ''",
+                "line 6: launch[0].node.namespace:",
+            ),
+            (
+                "{name: stale_after_s",
+                "{name: a:=b",
+                "line 9: launch[0].node.param[1]:",
+            ),
+            (
+                "{from: a, to: b}",
+                "{from: '', to: b}",
+                "line 11: launch[0].node.remap[0]:",
+            ),
+            (
+                "{from: a, to: b}",
+                "{from: __node, to: ''}",
+                "line 11: launch[0].node.remap[0]:",
+            ),
+        ] {
+            let e = parse_launch(&GOOD.replace(from, to), "l.yaml")
+                .unwrap_err()
+                .to_string();
+            assert!(e.starts_with(&format!("l.yaml {wanted}")), "{e}");
+        }
+        // Everything accepted makes arguments the node reads back.
+        let n = &parse_launch(GOOD, "l.yaml").unwrap().launch[0].node;
+        crate::parse_ros_args(&n.ros_args(Path::new("/cfg"))).unwrap();
     }
 }

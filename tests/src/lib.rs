@@ -4,6 +4,11 @@
 //! package gets it built before its integration tests and its path as
 //! `CARGO_BIN_EXE_mrtwin`, so tests here could not find it reliably. They use this
 //! library (a dev-dependency of `cli`) for the Python interop peers.
+//!
+//! [`fuzz`] holds the fuzz generators and the campaign runner of every parser, shared by
+//! the driver `src/bin/fuzz-parsers.rs` and the fast slice `tests/fuzz_parsers.rs`.
+
+pub mod fuzz;
 
 use std::path::{Path, PathBuf};
 use std::process::Output;

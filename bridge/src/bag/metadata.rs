@@ -144,13 +144,19 @@ pub fn qos_profiles_yaml(reliability: Reliability) -> String {
 /// Parse a `metadata.yaml` (named in errors).
 pub fn read_metadata(path: &Path) -> Result<BagInfo, BagError> {
     let text = std::fs::read_to_string(path).map_err(|e| BagError::io(path, "read", e))?;
+    parse_metadata(&text, path)
+}
+
+/// Parse the text of a `metadata.yaml`; `path` names it in errors (what
+/// [`read_metadata`] does once the file is read).
+pub fn parse_metadata(text: &str, path: &Path) -> Result<BagInfo, BagError> {
     if text.trim().is_empty() {
         return Err(BagError::Metadata {
             file: path.to_owned(),
             reason: "file is empty".into(),
         });
     }
-    let file: MetadataFile = serde_norway::from_str(&text).map_err(|e| BagError::Metadata {
+    let file: MetadataFile = serde_norway::from_str(text).map_err(|e| BagError::Metadata {
         file: path.to_owned(),
         reason: e.to_string(),
     })?;

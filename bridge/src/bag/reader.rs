@@ -470,7 +470,8 @@ pub struct BagContents {
     pub metadata: Option<BagInfo>,
     /// Messages of the mrtwin topics, decoded, in file order.
     pub messages: Vec<BagMessage>,
-    /// Every topic, in order of first message.
+    /// Every topic (name, type and encoding: one name published with two types is two
+    /// topics), in order of first message.
     pub topics: Vec<TopicSummary>,
     /// Topics that are not mrtwin's (or not CDR), with counts.
     pub skipped: Vec<SkippedTopic>,
@@ -495,11 +496,19 @@ pub fn read_bag(path: &Path) -> Result<BagContents, BagError> {
         metadata: raw.metadata().cloned(),
         ..Default::default()
     };
-    let mut topic_index: HashMap<String, usize> = HashMap::new();
+    // Per topic name, type and encoding: channels of one name with different types (a
+    // publisher of another type on the same topic) are different topics, each decoded as
+    // its own type or skipped.
+    let mut topic_index: HashMap<(String, String, String), usize> = HashMap::new();
     for (index, m) in (0_u64..).zip(raw.by_ref()) {
         let m = m?;
         let ch = &m.channel;
-        let idx = *topic_index.entry(ch.topic.clone()).or_insert_with(|| {
+        let key = (
+            ch.topic.clone(),
+            ch.type_name.clone(),
+            ch.message_encoding.clone(),
+        );
+        let idx = *topic_index.entry(key).or_insert_with(|| {
             let known = (ch.message_encoding == MESSAGE_ENCODING)
                 .then(|| known_topic(&ch.topic, &ch.type_name))
                 .flatten();
