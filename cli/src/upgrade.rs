@@ -14,7 +14,7 @@ use ::diagnose::Diagnosis;
 use anyhow::{bail, Result};
 use node::conditioning::SensorSample;
 use node::config::TwinNodeParams;
-use node::fit::{predict, rms_residual};
+use node::fit::{predict, rms_residual, FitError};
 use node::pipeline::PipelineConfig;
 use serde_json::{json, Value};
 use twin::models::{ModelKind, TwoChamberParams};
@@ -202,7 +202,7 @@ pub fn write_upgraded(
         effects,
         ..config.clone()
     };
-    let c = calibrate(&up_config, records, 8, &[])?;
+    let (c, held) = calibrate_upgrade(&config, &up_config, records)?;
     // The full fit ran through the same pipeline on every sample: its RMS is the replay's.
     let up_rmse = c.full.rmse_n;
     write_twin_file(
@@ -210,14 +210,22 @@ pub fn write_upgraded(
         &format!(
             "Written by `mrtwin diagnose --write-params`: {} upgraded with {} found on {} and \
              calibrated there.\nReplay RMS residual {:.4} N → {:.4} N (ratio {:.3}; predicted from \
-             the variance diagnose explained: {:.3}).",
+             the variance diagnose explained: {:.3}).{}",
             params_path.display(),
             added.join(", "),
             input.display(),
             twin_rmse,
             up_rmse,
             up_rmse / twin_rmse,
-            claim
+            claim,
+            if held.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "\nHeld at diagnose's value (the record does not identify it in the twin): {}.",
+                    held.join(", ")
+                )
+            }
         ),
         &TwinSection::new(ModelKind::TwoChamber, effects, &c.full.params, &config),
     )?;
@@ -228,9 +236,52 @@ pub fn write_upgraded(
         "replay_rmse_N": up_rmse,
         "replay_ratio": up_rmse / twin_rmse,
         "fit": crate::fit::report_json(&c, &[PathBuf::from(input)]),
+        "held_at_diagnose_value": held,
     });
     Ok(TwinCheck {
         json,
         summary: summary(up_rmse),
     })
+}
+
+/// Calibrate the upgraded twin on `records`. When the records cannot identify a parameter
+/// of an effect the upgrade added (the twin's fit is not diagnose's: on UTFSM 10mm1Hz
+/// diagnose's fluid mass is resolved, the twin's `fluid_density_kg_m3` is not, against the
+/// chamber compliance at one frequency), that parameter is held at the value translated
+/// from diagnose's finding and the fit is made again; the held keys are returned (and
+/// written to the JSON). A base parameter that is not identifiable is an error as before.
+fn calibrate_upgrade(
+    config: &PipelineConfig,
+    up_config: &PipelineConfig,
+    records: &[Vec<SensorSample>],
+) -> Result<(crate::fit::Calibrated, Vec<String>)> {
+    let levels = node::fit::current_levels(records);
+    let base_keys: Vec<String> =
+        node::fit::free_parameters(config.model, &config.params, config.effects, levels)
+            .map(|(k, _)| k.iter().map(|k| k.key()).collect())
+            .unwrap_or_default();
+    let mut held: Vec<String> = Vec::new();
+    loop {
+        let err = match calibrate(up_config, records, 8, &held) {
+            Ok(c) => return Ok((c, held)),
+            Err(e) => e,
+        };
+        let added: Vec<String> = match err.root_cause().downcast_ref::<FitError>() {
+            Some(FitError::NotIdentifiable(keys)) => keys
+                .iter()
+                .map(|k| k.key())
+                .filter(|k| !base_keys.contains(k) && !held.contains(k))
+                .collect(),
+            _ => Vec::new(),
+        };
+        if added.is_empty() {
+            return Err(err);
+        }
+        tracing::warn!(
+            held = %added.join(", "),
+            "the upgraded twin's fit cannot identify these on this record; they are held at \
+             diagnose's values"
+        );
+        held.extend(added);
+    }
 }
