@@ -60,7 +60,8 @@ pub struct ZenohConfig {
     pub mode: ZenohMode,
     /// Endpoints to connect to, e.g. `tcp/127.0.0.1:7447`.
     pub connect: Vec<String>,
-    /// Endpoints to listen on, e.g. `tcp/127.0.0.1:0`.
+    /// Endpoints to listen on, e.g. `tcp/0.0.0.0:7447`. Empty (the default): a peer
+    /// listens on loopback only, `tcp/127.0.0.1:0` (any free port).
     pub listen: Vec<String>,
     /// Find peers by UDP multicast scouting (off for isolated tests).
     pub multicast_scouting: bool,

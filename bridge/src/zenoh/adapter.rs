@@ -12,6 +12,9 @@ use crate::transport::{Message, Topic, Transport, TransportError};
 
 const NAME: &str = "zenoh";
 
+/// Where a peer listens when its configuration names no endpoint: loopback, any free port.
+pub const LOOPBACK_LISTEN: &str = "tcp/127.0.0.1:0";
+
 /// zenoh's own configuration for `cfg`.
 fn session_config(cfg: &ZenohConfig) -> Result<zenoh::Config, TransportError> {
     let err = |what: &str, e: Box<dyn std::error::Error + Send + Sync>| {
@@ -35,8 +38,15 @@ fn session_config(cfg: &ZenohConfig) -> Result<zenoh::Config, TransportError> {
         .map_err(|e| err("mode", e))?;
     c.insert_json5("connect/endpoints", &json_list(&cfg.connect))
         .map_err(|e| err("connect", e))?;
-    if !cfg.listen.is_empty() {
-        c.insert_json5("listen/endpoints", &json_list(&cfg.listen))
+    // Security default: a peer listens on loopback unless told otherwise (zenoh's own
+    // default is every interface, `tcp/[::]:0`). Peers on this host still find it by
+    // scouting; a peer elsewhere needs `listen` set to an address it can reach.
+    let listen = match (cfg.listen.is_empty(), cfg.mode) {
+        (true, super::ZenohMode::Peer) => vec![LOOPBACK_LISTEN.to_string()],
+        _ => cfg.listen.clone(),
+    };
+    if !listen.is_empty() {
+        c.insert_json5("listen/endpoints", &json_list(&listen))
             .map_err(|e| err("listen", e))?;
     }
     c.insert_json5(
@@ -207,6 +217,42 @@ mod tests {
             vec![Message::PredictedForce(msgs::Float64 { data: 2.5 })]
         );
         t.close();
+    }
+
+    #[test]
+    fn a_peer_listens_on_loopback_unless_told_otherwise() {
+        let listen = |cfg: &ZenohConfig| {
+            session_config(cfg)
+                .unwrap()
+                .get_json("listen/endpoints")
+                .unwrap()
+        };
+        let peer = ZenohConfig::default();
+        assert!(
+            listen(&peer).contains("tcp/127.0.0.1:0"),
+            "{}",
+            listen(&peer)
+        );
+        let told = ZenohConfig {
+            listen: vec!["tcp/0.0.0.0:7447".into()],
+            ..Default::default()
+        };
+        let l = listen(&told);
+        assert!(
+            l.contains("tcp/0.0.0.0:7447") && !l.contains("127.0.0.1"),
+            "{l}"
+        );
+        // A client does not listen: nothing is added.
+        let client = ZenohConfig {
+            mode: crate::zenoh::ZenohMode::Client,
+            connect: vec!["tcp/127.0.0.1:7447".into()],
+            ..Default::default()
+        };
+        assert!(
+            !listen(&client).contains("127.0.0.1:0"),
+            "{}",
+            listen(&client)
+        );
     }
 
     #[test]
