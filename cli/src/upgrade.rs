@@ -256,10 +256,9 @@ fn calibrate_upgrade(
     records: &[Vec<SensorSample>],
 ) -> Result<(crate::fit::Calibrated, Vec<String>)> {
     let levels = node::fit::current_levels(records);
-    let base_keys: Vec<String> =
-        node::fit::free_parameters(config.model, &config.params, config.effects, levels)
-            .map(|(k, _)| k.iter().map(|k| k.key()).collect())
-            .unwrap_or_default();
+    let (base, _) =
+        node::fit::free_parameters(config.model, &config.params, config.effects, levels)?;
+    let base_keys: Vec<String> = base.iter().map(|k| k.key()).collect();
     let mut held: Vec<String> = Vec::new();
     loop {
         let err = match calibrate(up_config, records, 8, &held) {

@@ -44,6 +44,18 @@ struct LocalFit {
     slope_gain: Vec<f64>,
 }
 
+/// Slope of `y` at sample j where a window is too short for a cubic: the forward
+/// difference, the backward one at the end of the run `(a, b)`, 0 in a run of one sample.
+fn one_sided_slope(t: &[f64], y: &[f64], j: usize, (a, b): (usize, usize)) -> f64 {
+    if j + 1 < b {
+        (y[j + 1] - y[j]) / (t[j + 1] - t[j])
+    } else if j > a {
+        (y[j] - y[j - 1]) / (t[j] - t[j - 1])
+    } else {
+        0.0
+    }
+}
+
 /// Local cubic fit of `y(t)` over ±`half[j]` samples around each sample j, windows cut at
 /// time gaps (`run` lists the gap-free runs as half-open index ranges).
 fn local_cubic(t: &[f64], y: &[f64], half: &[usize], run: &[(usize, usize)]) -> LocalFit {
@@ -60,13 +72,7 @@ fn local_cubic(t: &[f64], y: &[f64], half: &[usize], run: &[(usize, usize)]) -> 
             let hi = (j + half[j] + 1).min(b);
             if hi - lo < 5 {
                 out.value[j] = y[j];
-                out.slope[j] = if j + 1 < b {
-                    (y[j + 1] - y[j]) / (t[j + 1] - t[j])
-                } else if j > a {
-                    (y[j] - y[j - 1]) / (t[j] - t[j - 1])
-                } else {
-                    0.0
-                };
+                out.slope[j] = one_sided_slope(t, y, j, (a, b));
                 continue;
             }
             let scale = (t[hi - 1] - t[lo]).max(1e-12);
@@ -204,13 +210,7 @@ fn local_cubic_adaptive_slope(
                 out.slope_gain[j] = slope_gain;
                 chosen[j] = hw;
             } else {
-                out.slope[j] = if j + 1 < b {
-                    (y[j + 1] - y[j]) / (t[j + 1] - t[j])
-                } else if j > a {
-                    (y[j] - y[j - 1]) / (t[j] - t[j - 1])
-                } else {
-                    0.0
-                };
+                out.slope[j] = one_sided_slope(t, y, j, (a, b));
             }
         }
     }

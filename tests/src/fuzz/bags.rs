@@ -24,7 +24,7 @@ use bridge::transport::{Message, Topic};
 use super::cdr::RandomMessage;
 use super::mutate::mutate;
 use super::rng::Rng;
-use super::{FuzzInput, Parser, Scratch, Verdict};
+use super::{names_file, FuzzInput, Parser, Scratch, Verdict};
 
 /// Largest generated `.mcap` file.
 const MAX_MCAP: usize = 8192;
@@ -300,14 +300,7 @@ fn read_and_check(path: &Path, input: &FuzzInput, within: &Path) -> Result<Verdi
     let contents = match read_bag(path) {
         Ok(c) => c,
         Err(e) if input.valid => return Err(format!("intact bag rejected: {e}")),
-        Err(e) => {
-            let message = e.to_string();
-            return if message.contains(&within.display().to_string()) {
-                Ok(Verdict::Rejected)
-            } else {
-                Err(format!("the error does not name the bag: {message}"))
-            };
-        }
+        Err(e) => return names_file(&e.to_string(), &within.display().to_string()),
     };
     if input.valid {
         if let Some(n) = expected_messages(input) {
@@ -502,14 +495,7 @@ fn check_metadata(input: &FuzzInput, _: &Scratch) -> Result<Verdict, String> {
     let info = match parse_metadata(&text, path) {
         Ok(info) => info,
         Err(e) if input.valid => return Err(format!("valid metadata.yaml rejected: {e}")),
-        Err(e) => {
-            let message = e.to_string();
-            return if message.contains("bag/metadata.yaml") {
-                Ok(Verdict::Rejected)
-            } else {
-                Err(format!("the error does not name the file: {message}"))
-            };
-        }
+        Err(e) => return names_file(&e.to_string(), "bag/metadata.yaml"),
     };
     // Round trip: what was read, written and read again, writes the same text.
     let written = to_yaml(&info);

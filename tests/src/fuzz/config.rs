@@ -18,7 +18,7 @@ use serde_norway::{Mapping, Value};
 
 use super::mutate::mutate;
 use super::rng::Rng;
-use super::{FuzzInput, Parser, Scratch, Verdict};
+use super::{names_file, FuzzInput, Parser, Scratch, Verdict};
 
 /// Largest generated file.
 const MAX_TEXT: usize = 4096;
@@ -311,14 +311,7 @@ where
     let params: T = match parse_params(&text, "params.yaml", node) {
         Ok(p) => p,
         Err(e) if input.valid => return Err(format!("valid parameter file rejected: {e}")),
-        Err(e) => {
-            let message = e.to_string();
-            return if message.contains("params.yaml") {
-                Ok(None)
-            } else {
-                Err(format!("the error does not name the file: {message}"))
-            };
-        }
+        Err(e) => return names_file(&e.to_string(), "params.yaml").map(|_| None),
     };
     // Round trip: written as a parameter file and read again, the same parameters.
     let written = params_yaml("round trip", &[(node, &params)])
@@ -479,14 +472,7 @@ fn check_launch(input: &FuzzInput, _: &Scratch) -> Result<Verdict, String> {
     let file = match parse_launch(&text, "launch.yaml") {
         Ok(f) => f,
         Err(e) if input.valid => return Err(format!("valid launch file rejected: {e}")),
-        Err(e) => {
-            let message = e.to_string();
-            return if message.contains("launch.yaml") {
-                Ok(Verdict::Rejected)
-            } else {
-                Err(format!("the error does not name the file: {message}"))
-            };
-        }
+        Err(e) => return names_file(&e.to_string(), "launch.yaml"),
     };
     // What `mrtwin launch` does next: each node's command line, parsed by the node.
     for (i, entry) in file.launch.iter().enumerate() {

@@ -88,6 +88,18 @@ pub enum Verdict {
     Rejected,
 }
 
+/// An error must name the file it is about (`file`: its path, or the name the parser was
+/// given for it): then the input was rejected as it should be.
+pub(crate) fn names_file(message: &str, file: &str) -> Result<Verdict, String> {
+    if message.contains(file) {
+        Ok(Verdict::Rejected)
+    } else {
+        Err(format!(
+            "the error does not name the file {file}: {message}"
+        ))
+    }
+}
+
 /// A directory of one worker for parsers that read paths; reused for every input.
 #[derive(Debug)]
 pub struct Scratch {

@@ -11,7 +11,7 @@ use bridge::utfsm::{
 
 use super::mutate::mutate;
 use super::rng::Rng;
-use super::{FuzzInput, Parser, Scratch, Verdict};
+use super::{names_file, FuzzInput, Parser, Scratch, Verdict};
 
 /// Largest generated text.
 const MAX_TEXT: usize = 2048;
@@ -220,34 +220,32 @@ fn check_recording(rec: &Recording) -> Result<(), String> {
     Ok(())
 }
 
-/// An error must name the file it is about.
-fn names_file(message: &str, file: &str) -> Result<Verdict, String> {
-    if message.contains(file) {
-        Ok(Verdict::Rejected)
-    } else {
-        Err(format!(
-            "the error does not name the file {file}: {message}"
-        ))
+/// 1 in 32 inputs also go through the path reader `read`, from the file `name` in the
+/// worker's scratch directory; its error must name that path.
+fn check_path_reader<T, E: std::fmt::Display>(
+    input: &FuzzInput,
+    scratch: &Scratch,
+    name: &str,
+    data: &[u8],
+    read: impl Fn(&std::path::Path) -> Result<T, E>,
+) -> Result<(), String> {
+    if input.len() % 32 != 7 {
+        return Ok(());
     }
-}
-
-/// 1 in 32 inputs also go through the path reader (from a file of the worker).
-fn through_file(input: &FuzzInput) -> bool {
-    input.len() % 32 == 7
+    let path = scratch.dir().join(name);
+    std::fs::write(&path, data).map_err(|e| format!("scratch write: {e}"))?;
+    if let Err(e) = read(&path) {
+        names_file(&e.to_string(), &path.display().to_string())?;
+    }
+    Ok(())
 }
 
 fn check_csv(input: &FuzzInput, scratch: &Scratch) -> Result<Verdict, String> {
     let data = input.part("recording.csv");
     let text = String::from_utf8_lossy(data);
     let source = "recording.csv";
-    if through_file(input) {
-        let path = scratch.dir().join(source);
-        std::fs::write(&path, data).map_err(|e| format!("scratch write: {e}"))?;
-        // Not UTF-8 is an I/O error of read_csv, which names the path.
-        if let Err(e) = read_csv(&path) {
-            names_file(&e.to_string(), &path.display().to_string())?;
-        }
-    }
+    // Not UTF-8 is an I/O error of read_csv, which names the path.
+    check_path_reader(input, scratch, source, data, read_csv)?;
     let rec = match parse_csv(&text, source) {
         Ok(rec) => rec,
         Err(e) if input.valid => return Err(format!("valid CSV rejected: {e}")),
@@ -369,13 +367,7 @@ fn check_preprocessed(input: &FuzzInput, scratch: &Scratch) -> Result<Verdict, S
         None => 0.5,
     };
     let data = input.part("test.txt");
-    if through_file(input) {
-        let path = scratch.dir().join("25mm0x5Hz1A.txt");
-        std::fs::write(&path, data).map_err(|e| format!("scratch write: {e}"))?;
-        if let Err(e) = read_preprocessed(&path) {
-            names_file(&e.to_string(), &path.display().to_string())?;
-        }
-    }
+    check_path_reader(input, scratch, "25mm0x5Hz1A.txt", data, read_preprocessed)?;
     let text = String::from_utf8_lossy(data);
     let source = "25mm0x5Hz1A.txt";
     match parse_preprocessed(&text, source, current_a) {
@@ -482,13 +474,7 @@ fn check_raw(input: &FuzzInput, scratch: &Scratch) -> Result<Verdict, String> {
             ChannelLayout::DisplacementOnChannel0
         });
     let data = input.part("raw.txt");
-    if through_file(input) {
-        let path = scratch.dir().join("ME25mm0x5Hz.txt");
-        std::fs::write(&path, data).map_err(|e| format!("scratch write: {e}"))?;
-        if let Err(e) = read_raw(&path) {
-            names_file(&e.to_string(), &path.display().to_string())?;
-        }
-    }
+    check_path_reader(input, scratch, "ME25mm0x5Hz.txt", data, read_raw)?;
     let text = String::from_utf8_lossy(data);
     let source = "ME25mm0x5Hz.txt";
     match parse_raw(&text, source, layout) {
