@@ -151,6 +151,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let twin_server = {
         let (state, ready) = (state.clone(), ready.clone());
         let mut server = ControlServer::new(&cfg)?;
+        // This server busy polls: its clients need not notify it.
+        server.set_sleeps(false);
         std::thread::spawn(move || -> Result<u64, String> {
             let mut twin = TwinHandler::paper();
             let mut model = |r: &ShmRequest| twin.handle(r);

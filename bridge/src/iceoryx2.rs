@@ -40,11 +40,13 @@
 mod adapter;
 #[cfg(feature = "iceoryx2")]
 pub mod controller;
+#[cfg(feature = "iceoryx2")]
+mod wakeup;
 
 #[cfg(feature = "iceoryx2")]
 pub use adapter::{
     output_from_shm, output_to_shm, quiet_logs, rejected_reply, sample_from_shm, sample_to_shm,
-    Backoff, ControlClient, ControlServer, Iceoryx2Transport,
+    Backoff, ControlClient, ControlServer, Iceoryx2Transport, POLLING_SERVER_STAYS_HOT,
 };
 
 use crate::transport::TransportError;

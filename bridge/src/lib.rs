@@ -10,6 +10,8 @@
 //!   features: [`ros2`] (DDS via ros2-client), [`zenoh`], [`iceoryx2`] (shared memory).
 //!   Their settings (`Ros2Config`, `ZenohConfig`, `Iceoryx2Config`) are compiled in every
 //!   build, so one parameter file reads the same whatever the build holds.
+//! - [`wake`]: the [`wake::Doorbell`] an adapter rings when a message arrives, so the loop
+//!   that reads it sleeps until then.
 
 pub mod bag;
 pub mod csv;
@@ -18,6 +20,7 @@ pub mod qos;
 pub mod ros2;
 pub mod transport;
 pub mod utfsm;
+pub mod wake;
 pub mod zenoh;
 
 pub use csv::{

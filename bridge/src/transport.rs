@@ -197,6 +197,12 @@ pub trait Transport: Send {
     fn publish(&mut self, msg: &Message) -> Result<(), TransportError>;
     /// Append whatever arrived on the subscribed topics since the last call; never blocks.
     fn poll(&mut self, out: &mut Vec<Message>) -> Result<(), TransportError>;
+    /// The doorbell this adapter rings when something arrives on a subscribed topic
+    /// (bind it to the thread that calls [`Transport::poll`]). `None`: the adapter cannot
+    /// say, and its reader must poll on a timer.
+    fn doorbell(&self) -> Option<crate::wake::Doorbell> {
+        None
+    }
 }
 
 #[cfg(test)]

@@ -58,8 +58,12 @@ pub struct ShmPrediction {
     pub health_level: u8,
     /// 1 when the request was rejected (bad numbers, time going back); the force is NaN.
     pub rejected: u8,
+    /// In a control reply: 1 when the twin's loop sleeps between requests, so a client
+    /// must notify the control service's wake-up event after each request (mrtwin's
+    /// `ControlClient` does); 0 when it polls (`low_latency`). 0 on the prediction topic.
+    pub server_sleeps: u8,
     /// Padding, zero.
-    pub reserved: [u8; 6],
+    pub reserved: [u8; 5],
 }
 
 /// What a controller asks the twin over the request–response service.

@@ -54,6 +54,11 @@ pub struct TwinNodeParams {
     pub stale_after_s: f64,
     /// Serve the iceoryx2 request–response control service.
     pub control_service: bool,
+    /// Poll the transports without sleeping while samples flow (yielding the core between
+    /// polls; after 2 ms of quiet the loop sleeps as without it): the lowest latency, one
+    /// core busy while samples flow. Off (default): the loop sleeps until a transport's
+    /// wake-up or its next deadline. Read at start.
+    pub low_latency: bool,
     /// Sample conditioning.
     pub conditioning: ConditioningConfig,
     /// Estimator; `enabled: false` switches it off.
@@ -112,6 +117,7 @@ impl Default for TwinNodeParams {
             yield_estimate_period_s: 0.1,
             stale_after_s: 0.5,
             control_service: true,
+            low_latency: false,
             conditioning: Default::default(),
             estimator: Default::default(),
             health: Default::default(),

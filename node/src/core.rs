@@ -435,6 +435,23 @@ impl TwinCore {
         Some(msg)
     }
 
+    /// The node time at which [`TwinCore::on_idle`] will next have something to say
+    /// (the stream going STALE, or the next announcement while it is): the loop may sleep
+    /// until then. `now` when it is due already.
+    pub fn next_idle_due(&self, now: f64) -> f64 {
+        let stale_at = self
+            .idle
+            .last_arrival
+            .map(|t| t + self.cfg.stale_after_s)
+            .filter(|&t| t >= now);
+        match (stale_at, self.idle.last_announced) {
+            // Just past the threshold: `on_idle` wants silence > stale_after_s.
+            (Some(t), _) => t + 1e-4,
+            (None, Some(a)) => (a + self.cfg.diagnostics_period_s).max(now),
+            (None, None) => now,
+        }
+    }
+
     /// The DiagnosticArray of the stream check and the pipeline's checks at `stamp_s`.
     fn diagnostics(&self, stamp_s: f64, stream: StreamState) -> DiagnosticArray {
         let mut checks = vec![stream.check()];
@@ -616,6 +633,39 @@ mod tests {
             .diagnostics
             .expect("diagnostics when the stream resumes");
         assert_ne!(d.status[0].level, msgs::DiagnosticStatus::STALE);
+    }
+
+    /// The loop sleeps until `next_idle_due`: at that time (and not before) `on_idle` must
+    /// have its announcement, so a sleeping node reports STALE on time.
+    #[test]
+    fn next_idle_due_is_when_on_idle_next_speaks() {
+        let p = TwinNodeParams::default();
+        let mut core = TwinCore::new(&p, "/ns/twin").unwrap();
+        assert_eq!(
+            core.next_idle_due(0.0),
+            0.0,
+            "due at once before any sample"
+        );
+        assert!(core.on_idle(0.0).is_some());
+        let due = core.next_idle_due(0.1);
+        assert!((due - p.diagnostics_period_s).abs() < 1e-9, "{due}");
+        assert!(core.on_idle(due - 1e-3).is_none());
+        assert!(core.on_idle(due).is_some());
+        // A sample at 10 s: nothing to say until the stream has been silent for
+        // stale_after_s; then STALE, then one period later again.
+        core.on_sample(&samples(1, 1000.0)[0], 10.0);
+        let due = core.next_idle_due(10.0);
+        assert!(due > 10.0 + p.stale_after_s && due < 10.0 + p.stale_after_s + 1e-3);
+        assert!(core.on_idle(due - 2e-3).is_none());
+        let d = core.on_idle(due).expect("STALE at the due time");
+        assert_eq!(d.status[0].level, msgs::DiagnosticStatus::STALE);
+        let next = core.next_idle_due(due);
+        assert!(
+            (next - (due + p.diagnostics_period_s)).abs() < 1e-9,
+            "{next}"
+        );
+        assert!(core.on_idle(next - 1e-3).is_none());
+        assert!(core.on_idle(next).is_some());
     }
 
     #[test]

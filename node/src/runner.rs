@@ -3,9 +3,14 @@
 //! publishes what the core returns on every transport, lets the core announce sensor
 //! silence (STALE), and reports live statistics once a second.
 //!
-//! One thread owns the core: no locks on the sample path. While samples flow the loop
-//! polls without sleeping (yielding the core); after 2 ms of quiet it sleeps 100 µs
-//! between polls.
+//! One thread owns the core: no locks on the sample path. Between turns the loop sleeps
+//! until a transport rings its [`Doorbell`](bridge::wake::Doorbell) (a sample or a
+//! control request arrived) or the next deadline of its own comes (the stream going
+//! STALE, the once-a-second statistics, the parameter poll), so an idle twin costs
+//! almost no CPU and a sample is stepped and published as soon as its transport hands
+//! it over. With [`TwinNodeParams::low_latency`] the loop instead polls without
+//! sleeping while samples flow (yielding the core) and sleeps like the default after
+//! 2 ms of quiet: a core busy while samples flow, for the shortest wake-up.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -103,7 +108,22 @@ pub struct TwinNode {
     input: usize,
     #[cfg(feature = "iceoryx2")]
     control: Option<bridge::iceoryx2::ControlServer>,
+    low_latency: bool,
 }
+
+/// Longest sleep between turns when nothing rings: how soon a stop flag is seen.
+const MAX_SLEEP: Duration = Duration::from_millis(50);
+
+/// Sleep between polls of a source that cannot ring.
+const POLL_SLEEP: Duration = Duration::from_micros(100);
+
+/// With `low_latency`: how long after the last sample or request the loop keeps polling
+/// hot before it sleeps on its doorbells like the default loop (what the control service
+/// promises its clients when it says it polls).
+#[cfg(feature = "iceoryx2")]
+const HOT_AFTER_ACTIVITY: Duration = bridge::iceoryx2::POLLING_SERVER_STAYS_HOT;
+#[cfg(not(feature = "iceoryx2"))]
+const HOT_AFTER_ACTIVITY: Duration = Duration::from_millis(2);
 
 /// The topics the twin node publishes.
 const OUTPUTS: [Topic; 4] = [
@@ -133,9 +153,9 @@ impl TwinNode {
         #[cfg(feature = "iceoryx2")]
         let control =
             if params.control_service && params.transports.contains(&TransportKind::Iceoryx2) {
-                Some(bridge::iceoryx2::ControlServer::new(
-                    &settings.iceoryx2_config(),
-                )?)
+                let mut c = bridge::iceoryx2::ControlServer::new(&settings.iceoryx2_config())?;
+                c.set_sleeps(!params.low_latency);
+                Some(c)
             } else {
                 None
             };
@@ -147,7 +167,23 @@ impl TwinNode {
             input,
             #[cfg(feature = "iceoryx2")]
             control,
+            low_latency: params.low_latency,
         })
+    }
+
+    /// Bind the doorbells of the sources the loop reads (input transport, control
+    /// service) to the calling thread; `false` when one of them cannot ring, so the loop
+    /// must poll it on a timer.
+    fn bind_doorbells(&self) -> bool {
+        #[cfg(feature = "iceoryx2")]
+        if let Some(c) = &self.control {
+            c.doorbell().bind_current_thread();
+        }
+        let input = self.transports[self.input].1.doorbell();
+        if let Some(b) = &input {
+            b.bind_current_thread();
+        }
+        input.is_some()
     }
 
     /// Take new parameters in flight from `source` (e.g. the parameter file, re-read when
@@ -197,6 +233,7 @@ impl TwinNode {
         let mut outbox = Vec::new();
         let mut last_activity = start;
         let mut next_params_poll = PARAMS_POLL_S;
+        let rings = self.bind_doorbells();
         loop {
             let now = Instant::now();
             if stop.reached(now) {
@@ -217,11 +254,26 @@ impl TwinNode {
             }
             if busy {
                 last_activity = now;
-            } else if now.duration_since(last_activity) < Duration::from_millis(2) {
-                std::thread::yield_now();
-            } else {
-                std::thread::sleep(Duration::from_micros(100));
             }
+            // low_latency: poll hot while samples flow (yield the core between polls).
+            if self.low_latency && now.duration_since(last_activity) < HOT_AFTER_ACTIVITY {
+                if !busy {
+                    std::thread::yield_now();
+                }
+                continue;
+            }
+            // Sleep until a ring or the next thing due (a ring during this turn returns
+            // at once: nothing that arrived after the poll waits for a deadline).
+            let due_s = window
+                .next_report_s
+                .min(next_params_poll)
+                .min(self.core.next_idle_due(clock(now)));
+            let mut wake_at = now + Duration::from_secs_f64((due_s - clock(now)).max(0.0));
+            wake_at = wake_at.min(now + if rings { MAX_SLEEP } else { POLL_SLEEP });
+            if let Some(d) = stop.deadline {
+                wake_at = wake_at.min(d);
+            }
+            bridge::wake::wait_until(wake_at);
         }
         window.report(&self.core, clock(Instant::now()))
     }
@@ -395,7 +447,8 @@ mod control {
             tau0_std_pa: f64::NAN,
             health_level: level_byte(core.pipeline().health_level()),
             rejected: 1,
-            reserved: [0; 6],
+            server_sleeps: 0,
+            reserved: [0; 5],
         };
         if req.kind == ShmRequest::PLANNED_CURRENT {
             let f = core.predict_with_current(&sample, s.current_a);

@@ -17,12 +17,14 @@ use iceoryx2::service::port_factory::request_response::PortFactory as RequestRes
 use msgs::shm::{ShmPrediction, ShmRequest, ShmSample};
 use msgs::{DamperSample, Header, Time, TwinOutput, YieldEstimate};
 
+use super::wakeup::{WakeListener, WakeNotifier};
 use super::{Iceoryx2Config, NAME};
 use crate::transport::{Message, Topic, Transport, TransportError};
+use crate::wake::Doorbell;
 
 /// The iceoryx2 service variant: inter-process, ports `Send` (the node's loop may run in
 /// any thread).
-type Svc = ipc_threadsafe::Service;
+pub(super) type Svc = ipc_threadsafe::Service;
 
 type PubSubFactory<T> = iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, T, ()>;
 
@@ -30,7 +32,7 @@ fn err(context: impl Into<String>, reason: impl ToString) -> TransportError {
     TransportError::new(NAME, context, reason)
 }
 
-fn dbg_err(context: impl Into<String>, reason: impl std::fmt::Debug) -> TransportError {
+pub(super) fn dbg_err(context: impl Into<String>, reason: impl std::fmt::Debug) -> TransportError {
     TransportError::new(NAME, context, format!("{reason:?}"))
 }
 
@@ -134,7 +136,8 @@ pub fn output_to_shm(seq: u64, o: &TwinOutput, tau0: (f64, f64)) -> ShmPredictio
         tau0_std_pa: tau0.1,
         health_level: o.health_level,
         rejected: 0,
-        reserved: [0; 6],
+        server_sleeps: 0,
+        reserved: [0; 5],
     }
 }
 
@@ -202,6 +205,12 @@ pub struct Iceoryx2Transport {
     sample_seq: u64,
     output_seq: u64,
     tau0: (f64, f64),
+    /// Notify `<service>/wake` after each send (per published service).
+    sample_wake: Option<WakeNotifier>,
+    output_wake: Option<WakeNotifier>,
+    /// Ring `doorbell` when a subscribed service's sender notifies.
+    doorbell: Doorbell,
+    _listeners: Vec<WakeListener>,
     // Dropped last: the ports above belong to it.
     _node: Node<Svc>,
 }
@@ -246,8 +255,13 @@ impl Iceoryx2Transport {
             sample_seq: 0,
             output_seq: 0,
             tau0: (f64::NAN, f64::NAN),
+            sample_wake: None,
+            output_wake: None,
+            doorbell: Doorbell::new(),
+            _listeners: Vec::new(),
             _node: node,
         };
+        let (senders, receivers) = (cfg.max_publishers, cfg.max_subscribers);
         let node = &t._node;
         if publish.contains(&Topic::Sample) || subscribe.contains(&Topic::Sample) {
             let name = cfg.sample_service();
@@ -258,6 +272,7 @@ impl Iceoryx2Transport {
                         .create()
                         .map_err(|e| dbg_err(format!("publisher on `{name}`"), e))?,
                 );
+                t.sample_wake = Some(WakeNotifier::new(node, &name, senders, receivers)?);
             }
             if subscribe.contains(&Topic::Sample) {
                 let sub = svc
@@ -266,6 +281,9 @@ impl Iceoryx2Transport {
                     .create()
                     .map_err(|e| dbg_err(format!("subscriber on `{name}`"), e))?;
                 t.sample_sub = Some((sub, GapCounter::default()));
+                let bell = t.doorbell.clone();
+                let l = WakeListener::spawn(node, &name, senders, receivers, bell)?;
+                t._listeners.push(l);
             }
             t.sample_svc = Some(svc);
         }
@@ -280,6 +298,7 @@ impl Iceoryx2Transport {
                         .create()
                         .map_err(|e| dbg_err(format!("publisher on `{name}`"), e))?,
                 );
+                t.output_wake = Some(WakeNotifier::new(node, &name, senders, receivers)?);
             }
             if sub_outputs {
                 let sub = svc
@@ -288,6 +307,9 @@ impl Iceoryx2Transport {
                     .create()
                     .map_err(|e| dbg_err(format!("subscriber on `{name}`"), e))?;
                 t.output_sub = Some((sub, GapCounter::default()));
+                let bell = t.doorbell.clone();
+                let l = WakeListener::spawn(node, &name, senders, receivers, bell)?;
+                t._listeners.push(l);
             }
             t.output_svc = Some(svc);
         }
@@ -337,6 +359,9 @@ impl Transport for Iceoryx2Transport {
                     p.send_copy(sample_to_shm(self.sample_seq, s))
                         .map_err(|e| dbg_err("publish on sensor/sample", e))?;
                     self.sample_seq += 1;
+                    if let Some(w) = &self.sample_wake {
+                        w.notify()?;
+                    }
                 }
             }
             Message::Output(o) => {
@@ -344,6 +369,9 @@ impl Transport for Iceoryx2Transport {
                     p.send_copy(output_to_shm(self.output_seq, o, self.tau0))
                         .map_err(|e| dbg_err("publish on twin/prediction", e))?;
                     self.output_seq += 1;
+                    if let Some(w) = &self.output_wake {
+                        w.notify()?;
+                    }
                 }
             }
             Message::YieldEstimate(y) => self.tau0 = (y.tau0, y.tau0_std),
@@ -394,6 +422,10 @@ impl Transport for Iceoryx2Transport {
         }
         Ok(())
     }
+
+    fn doorbell(&self) -> Option<Doorbell> {
+        Some(self.doorbell.clone())
+    }
 }
 
 /// A prediction that rejects `req` (bad numbers, time going back): force NaN, `rejected` 1.
@@ -407,7 +439,8 @@ pub fn rejected_reply(req: &ShmRequest) -> ShmPrediction {
         tau0_std_pa: f64::NAN,
         health_level: 2,
         rejected: 1,
-        reserved: [0; 6],
+        server_sleeps: 0,
+        reserved: [0; 5],
     }
 }
 
@@ -423,6 +456,11 @@ pub struct ControlServer {
     budget: usize,
     answered: u64,
     undelivered: u64,
+    /// Rung when a client notifies `<control>/wake` after a request.
+    doorbell: Doorbell,
+    /// Told to clients in every reply ([`ShmPrediction::server_sleeps`]).
+    sleeps: bool,
+    _listener: WakeListener,
     // Dropped last: the ports above belong to it.
     _node: Node<Svc>,
 }
@@ -450,12 +488,18 @@ impl ControlServer {
                 e,
             )
         })?;
+        let doorbell = Doorbell::new();
+        let name = cfg.control_service();
+        let listener = WakeListener::spawn(&node, &name, cfg.max_clients, 1, doorbell.clone())?;
         Ok(Self {
             server,
             service,
             budget: cfg.max_clients * cfg.max_in_flight,
             answered: 0,
             undelivered: 0,
+            doorbell,
+            sleeps: true,
+            _listener: listener,
             _node: node,
         })
     }
@@ -479,7 +523,8 @@ impl ControlServer {
             else {
                 break;
             };
-            let reply = handler(active.payload());
+            let mut reply = handler(active.payload());
+            reply.server_sleeps = u8::from(self.sleeps);
             if active.is_connected() && active.send_copy(reply).is_ok() {
                 self.answered += 1;
             } else {
@@ -488,6 +533,19 @@ impl ControlServer {
             n += 1;
         }
         Ok(n)
+    }
+
+    /// The doorbell rung when a client sends a request (bind it to the serving thread).
+    pub fn doorbell(&self) -> Doorbell {
+        self.doorbell.clone()
+    }
+
+    /// Whether the serving loop sleeps between requests (default) and so needs clients to
+    /// notify it, or busy polls (`false`: clients then skip the notification, a syscall
+    /// per request). Said to clients in every reply. A loop that says it polls must keep
+    /// polling for at least [`POLLING_SERVER_STAYS_HOT`] after each request.
+    pub fn set_sleeps(&mut self, sleeps: bool) {
+        self.sleeps = sleeps;
     }
 
     /// Replies delivered since creation.
@@ -506,6 +564,11 @@ impl ControlServer {
     }
 }
 
+/// How long a control server that says it polls ([`ControlServer::set_sleeps`]`(false)`)
+/// keeps polling after a request. A client whose previous request is older than half of
+/// this notifies anyway, so a server that went to sleep meanwhile still wakes at once.
+pub const POLLING_SERVER_STAYS_HOT: Duration = Duration::from_millis(2);
+
 /// The client side of the control service, used by controllers (and tests, benches).
 ///
 /// [`ControlClient::request`] sends one request and waits, busy polling, for its reply.
@@ -515,6 +578,11 @@ pub struct ControlClient {
     client: Client<Svc, ShmRequest, (), ShmPrediction, ()>,
     service: RequestResponseFactory<Svc, ShmRequest, (), ShmPrediction, ()>,
     in_flight: VecDeque<PendingResponse<Svc, ShmRequest, (), ShmPrediction, ()>>,
+    /// Wakes the server after each request while it says it sleeps (the first request
+    /// always notifies), and after a pause of half [`POLLING_SERVER_STAYS_HOT`].
+    wake: WakeNotifier,
+    notify: bool,
+    last_send: Option<Instant>,
     // Dropped last: the ports above belong to it.
     _node: Node<Svc>,
 }
@@ -537,10 +605,14 @@ impl ControlClient {
             .client_builder()
             .create()
             .map_err(|e| dbg_err(format!("client on `{}`", cfg.control_service()), e))?;
+        let wake = WakeNotifier::new(&node, &cfg.control_service(), cfg.max_clients, 1)?;
         Ok(Self {
             client,
             service,
             in_flight: VecDeque::new(),
+            wake,
+            notify: true,
+            last_send: None,
             _node: node,
         })
     }
@@ -566,7 +638,7 @@ impl ControlClient {
     }
 
     fn send_pending(
-        &self,
+        &mut self,
         req: &ShmRequest,
     ) -> Result<PendingResponse<Svc, ShmRequest, (), ShmPrediction, ()>, TransportError> {
         let pending = self
@@ -578,6 +650,14 @@ impl ControlClient {
                 format!("send request {}", req.sample.seq),
                 "no control server connected",
             ));
+        }
+        let now = Instant::now();
+        let paused = self
+            .last_send
+            .is_none_or(|t| now.duration_since(t) > POLLING_SERVER_STAYS_HOT / 2);
+        self.last_send = Some(now);
+        if self.notify || paused {
+            self.wake.notify()?;
         }
         Ok(pending)
     }
@@ -612,6 +692,7 @@ impl ControlClient {
                 .receive()
                 .map_err(|e| dbg_err(format!("receive reply {}", req.sample.seq), e))?
             {
+                self.notify = r.payload().server_sleeps != 0;
                 return Ok(Some(*r.payload()));
             }
             if Instant::now() >= deadline {
@@ -639,6 +720,7 @@ impl ControlClient {
                 .map_err(|e| dbg_err("receive a pipelined reply", e))?
             {
                 let reply = *r.payload();
+                self.notify = reply.server_sleeps != 0;
                 drop(r);
                 self.in_flight.remove(i);
                 return Ok(Some(reply));

@@ -2,7 +2,10 @@
 
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
+use std::task::{Context as TaskContext, Poll, Waker};
 use std::thread::JoinHandle;
+
+use futures::Stream;
 
 use msgs::{
     Clock, DamperSample, DiagnosticArray, Float64, Float64MultiArray, RosMessage, TwinOutput,
@@ -14,6 +17,7 @@ use ros2_client::{MessageTypeName, Name, NodeName, NodeOptions, QosProfile};
 
 use super::{Reliability, Ros2Config, NAME};
 use crate::transport::{Message, Topic, Transport, TransportError};
+use crate::wake::Doorbell;
 
 /// What the adapter sees of the ROS graph.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
@@ -83,38 +87,47 @@ enum Sub {
 }
 
 impl Sub {
-    /// Take everything pending; the first read error ends the take.
-    fn take_all(&self, out: &mut Vec<Message>) -> Result<(), String> {
+    /// Take everything pending, then leave `waker` with the reader so that RustDDS wakes
+    /// it on the next arrival; the first read error ends the take.
+    fn take_all(&self, out: &mut Vec<Message>, waker: &Waker) -> Result<(), String> {
         fn drain<M: 'static + serde::de::DeserializeOwned>(
             s: &Subscription<M>,
             out: &mut Vec<Message>,
-            wrap: fn(M) -> Message,
+            waker: &Waker,
+            wrap: impl Fn(M) -> Result<Message, String>,
         ) -> Result<(), String> {
             loop {
                 match s.take() {
-                    Ok(Some((m, _info))) => out.push(wrap(m)),
-                    Ok(None) => return Ok(()),
+                    Ok(Some((m, _info))) => out.push(wrap(m)?),
+                    Ok(None) => break,
                     Err(e) => return Err(e.to_string()),
+                }
+            }
+            // The reader's stream stores the waker when it finds nothing (and takes what
+            // arrived in between), so no arrival after the take above goes unrung.
+            let stream = s.async_stream();
+            futures::pin_mut!(stream);
+            let mut cx = TaskContext::from_waker(waker);
+            loop {
+                match stream.as_mut().poll_next(&mut cx) {
+                    Poll::Ready(Some(Ok((m, _info)))) => out.push(wrap(m)?),
+                    Poll::Ready(Some(Err(e))) => return Err(e.to_string()),
+                    Poll::Ready(None) | Poll::Pending => return Ok(()),
                 }
             }
         }
         match self {
-            Sub::Sample(s) => drain(s, out, Message::Sample),
-            Sub::Output(s) => drain(s, out, Message::Output),
-            Sub::PredictedForce(s) => drain(s, out, Message::PredictedForce),
-            Sub::YieldEstimate(s) => drain(s, out, Message::YieldEstimate),
-            Sub::Diagnostics(s) => drain(s, out, Message::Diagnostics),
-            Sub::Clock(s) => drain(s, out, Message::Clock),
-            Sub::SampleArray(s, frame) => loop {
-                match s.take() {
-                    Ok(Some((m, _info))) => match m.to_damper_sample(frame) {
-                        Ok(d) => out.push(Message::Sample(d)),
-                        Err(e) => return Err(format!("sensor/sample_array: {e}")),
-                    },
-                    Ok(None) => return Ok(()),
-                    Err(e) => return Err(e.to_string()),
-                }
-            },
+            Sub::Sample(s) => drain(s, out, waker, |m| Ok(Message::Sample(m))),
+            Sub::Output(s) => drain(s, out, waker, |m| Ok(Message::Output(m))),
+            Sub::PredictedForce(s) => drain(s, out, waker, |m| Ok(Message::PredictedForce(m))),
+            Sub::YieldEstimate(s) => drain(s, out, waker, |m| Ok(Message::YieldEstimate(m))),
+            Sub::Diagnostics(s) => drain(s, out, waker, |m| Ok(Message::Diagnostics(m))),
+            Sub::Clock(s) => drain(s, out, waker, |m| Ok(Message::Clock(m))),
+            Sub::SampleArray(s, frame) => drain(s, out, waker, |m| {
+                m.to_damper_sample(frame)
+                    .map(Message::Sample)
+                    .map_err(|e| format!("sensor/sample_array: {e}"))
+            }),
         }
     }
 }
@@ -134,6 +147,9 @@ pub struct Ros2Transport {
     remote_nodes: NodeMap,
     context: Option<Context>,
     fully_qualified_name: String,
+    /// Rung by the readers' wakers when a message arrives.
+    doorbell: Doorbell,
+    waker: Waker,
 }
 
 impl Ros2Transport {
@@ -228,6 +244,7 @@ impl Ros2Transport {
             })
             .map_err(|e| TransportError::new(NAME, "start the spinner thread", e))?;
 
+        let doorbell = Doorbell::new();
         Ok(Self {
             publishers,
             subscriptions,
@@ -236,6 +253,8 @@ impl Ros2Transport {
             remote_nodes,
             context: Some(context),
             fully_qualified_name: fqn,
+            waker: doorbell.waker(),
+            doorbell,
         })
     }
 
@@ -437,11 +456,15 @@ impl Transport for Ros2Transport {
 
     fn poll(&mut self, out: &mut Vec<Message>) -> Result<(), TransportError> {
         for (topic, s) in &self.subscriptions {
-            s.take_all(out).map_err(|e| {
+            s.take_all(out, &self.waker).map_err(|e| {
                 TransportError::new(NAME, format!("take from {}", topic.ros_name()), e)
             })?;
         }
         Ok(())
+    }
+
+    fn doorbell(&self) -> Option<Doorbell> {
+        Some(self.doorbell.clone())
     }
 }
 

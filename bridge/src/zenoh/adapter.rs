@@ -2,13 +2,14 @@
 
 use std::collections::HashMap;
 
-use zenoh::handlers::FifoChannelHandler;
+use zenoh::handlers::{FifoChannel, FifoChannelHandler, IntoHandler};
 use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::sample::Sample;
 use zenoh::{Session, Wait};
 
 use super::ZenohConfig;
 use crate::transport::{Message, Topic, Transport, TransportError};
+use crate::wake::Doorbell;
 
 const NAME: &str = "zenoh";
 
@@ -73,8 +74,14 @@ fn json_list(v: &[String]) -> String {
 pub struct ZenohTransport {
     session: Session,
     publishers: HashMap<Topic, Publisher<'static>>,
-    subscribers: Vec<(Topic, Subscriber<FifoChannelHandler<Sample>>)>,
+    /// Per subscribed topic: zenoh's subscriber (its callback queues the sample in a FIFO
+    /// channel, as zenoh's default handler does, and rings the doorbell) and the queue.
+    subscribers: Vec<(Topic, Subscriber<()>, FifoChannelHandler<Sample>)>,
+    doorbell: Doorbell,
 }
+
+/// Samples queued per subscription before zenoh's receiving thread waits for the reader.
+const QUEUE: usize = 65_536;
 
 impl ZenohTransport {
     /// Open a session and declare the publishers and subscribers of `damper`.
@@ -100,19 +107,27 @@ impl ZenohTransport {
             publishers.insert(t, p);
         }
         let mut subscribers = Vec::new();
+        let doorbell = Doorbell::new();
         for &t in subscribe {
             let key = cfg.key(damper, t);
+            // Queueing blocks zenoh's receiving thread while the queue is full.
+            let (queue, rx) = FifoChannel::new(QUEUE).into_handler();
+            let bell = doorbell.clone();
             let s = session
                 .declare_subscriber(key.clone())
-                .with(zenoh::handlers::FifoChannel::new(65_536))
+                .callback(move |sample| {
+                    queue.call(sample);
+                    bell.ring();
+                })
                 .wait()
                 .map_err(|e| TransportError::new(NAME, format!("declare subscriber {key}"), e))?;
-            subscribers.push((t, s));
+            subscribers.push((t, s, rx));
         }
         Ok(Self {
             session,
             publishers,
             subscribers,
+            doorbell,
         })
     }
 
@@ -148,9 +163,9 @@ impl Transport for ZenohTransport {
     /// returned (a payload that does not decode is dropped with it; a closed channel is
     /// an error), and the rest waits for the next call.
     fn poll(&mut self, out: &mut Vec<Message>) -> Result<(), TransportError> {
-        for (topic, sub) in &self.subscribers {
+        for (topic, sub, queue) in &self.subscribers {
             let context = || format!("receive on {}", sub.key_expr());
-            while let Some(sample) = sub
+            while let Some(sample) = queue
                 .try_recv()
                 .map_err(|e| TransportError::new(NAME, context(), e))?
             {
@@ -166,6 +181,10 @@ impl Transport for ZenohTransport {
             }
         }
         Ok(())
+    }
+
+    fn doorbell(&self) -> Option<Doorbell> {
+        Some(self.doorbell.clone())
     }
 }
 

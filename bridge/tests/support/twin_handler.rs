@@ -111,7 +111,8 @@ impl TwinHandler {
             tau0_std_pa: f64::NAN,
             health_level: 0,
             rejected: 0,
-            reserved: [0; 6],
+            server_sleeps: 0,
+            reserved: [0; 5],
         }
     }
 }
