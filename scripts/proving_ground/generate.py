@@ -357,8 +357,15 @@ def apply_effect(p, eff, st, s):
     raise ValueError(eff)
 
 
+# Scale bounds of the sizing. Compressibility: K_liq between 5e7 and 2e10 Pa (air fraction
+# between 5 % and 20x its drawn reference, at most 30 %). Stiffer than 2e10 Pa (ten times
+# mineral oil) the "effect" the sizing finds is no longer compliance: with the fluid all
+# but rigid, the pressure a yield-stress plug locks in at standstill is set by the
+# integrator's last steps (kN either way on seed 7 at K_eff 1.5e17 Pa), so a record
+# labelled compressible would carry a numerical artefact. Where the target size cannot
+# be reached inside the bounds, the effect is larger than the target (meta: u_achieved).
 LIMITS = {"field_lag": (0.1, 6.0),               # effective lag 1-60 ms (nominal 3-30 ms)
-          "fluid_compressibility": (1e-12, 20.0)}  # K_liq >= 5e7 Pa, air <= 30 %
+          "fluid_compressibility": (0.05, 20.0)}
 
 
 def absorbable_basis(rig):
