@@ -16,9 +16,9 @@
 //! measured stretch. The idle rows open a twin on all three transports with no input for
 //! the same stretch and report the same two figures.
 //!
-//! `cargo bench -p node --bench node_path [-- SECONDS RATE_HZ… [--stress]]` (defaults: 2 s
-//! at 1, 10 and 20 kHz). `--stress` runs a busy-loop process beside the bench (the other
-//! core loaded).
+//! `cargo bench -p node --bench node_path [-- SECONDS RATE_HZ… [--stress] [--only=KIND]]`
+//! (defaults: 2 s at 1, 10 and 20 kHz). `--stress` runs a busy-loop process beside the
+//! bench (the other core loaded); `--only=zenoh` (ros2, iceoryx2) runs one transport.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -286,6 +286,11 @@ fn main() {
     bridge::iceoryx2::quiet_logs();
     let raw: Vec<String> = std::env::args().skip(1).collect();
     let stress = raw.iter().any(|a| a == "--stress");
+    // `--only=zenoh` (or ros2, iceoryx2): one transport's rows.
+    let only: Option<TransportKind> = raw
+        .iter()
+        .find_map(|a| a.strip_prefix("--only="))
+        .map(|k| k.parse().expect("--only=ros2|zenoh|iceoryx2"));
     let args: Vec<&String> = raw.iter().filter(|a| !a.starts_with("--")).collect();
     let seconds: f64 = args.first().and_then(|s| s.parse().ok()).unwrap_or(2.0);
     let rates: Vec<f64> = if args.len() > 1 {
@@ -317,6 +322,9 @@ fn main() {
         TransportKind::Zenoh,
         TransportKind::Iceoryx2,
     ] {
+        if only.is_some_and(|o| o != kind) {
+            continue;
+        }
         for &rate in &rates {
             for path in [
                 Path::Bare,

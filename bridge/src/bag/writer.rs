@@ -174,10 +174,10 @@ impl BagWriter {
             // header patched later (see the module doc).
             .disable_seeking(true)
             .create(BufWriter::with_capacity(1 << 16, file))
-            .map_err(|e| BagError::write(&mcap_path, e))?;
+            .map_err(|e| mcap_error(&mcap_path, e))?;
         // Magic and header reach the file at once: a recorder killed before its first
         // flush leaves a valid (empty) MCAP file, not a 0-byte one.
-        writer.flush().map_err(|e| BagError::write(&mcap_path, e))?;
+        writer.flush().map_err(|e| mcap_error(&mcap_path, e))?;
         let file_name = mcap_path
             .file_name()
             .map(|s| s.to_string_lossy().into_owned())
@@ -275,7 +275,7 @@ impl BagWriter {
                 },
                 cdr,
             )
-            .map_err(|e| BagError::write(&self.mcap_path, e))?;
+            .map_err(|e| mcap_error(&self.mcap_path, e))?;
         ch.count += 1;
         self.count += 1;
         self.range = Some(match self.range {
@@ -337,7 +337,7 @@ impl BagWriter {
         reliability: Reliability,
     ) -> Result<usize, BagError> {
         let writer = self.writer.as_mut().expect("writer present until finish");
-        let err = |e: mcap::McapError| BagError::write(&self.mcap_path, e);
+        let err = |e: mcap::McapError| mcap_error(&self.mcap_path, e);
         let schema = writer
             .add_schema(type_name, SCHEMA_ENCODING, definition.as_bytes())
             .map_err(err)?;
@@ -373,9 +373,7 @@ impl BagWriter {
     /// [`BagWriterOptions::sync`]), then rewrite `metadata.yaml` atomically.
     pub fn flush(&mut self) -> Result<(), BagError> {
         let writer = self.writer.as_mut().expect("writer present until finish");
-        writer
-            .flush()
-            .map_err(|e| BagError::write(&self.mcap_path, e))?;
+        writer.flush().map_err(|e| mcap_error(&self.mcap_path, e))?;
         if self.options.sync {
             // `Writer::flush` flushed the BufWriter; reach the file through the mcap
             // writer's stream is not possible, so sync by path.
@@ -416,8 +414,8 @@ impl BagWriter {
                 name: "rosbag2".into(),
                 metadata: meta,
             })
-            .map_err(|e| BagError::write(&path, e))?;
-        writer.finish().map_err(|e| BagError::write(&path, e))?;
+            .map_err(|e| mcap_error(&path, e))?;
+        writer.finish().map_err(|e| mcap_error(&path, e))?;
         let buf = writer.into_inner();
         let file = buf
             .into_inner()
@@ -502,6 +500,16 @@ impl Drop for BagWriter {
     }
 }
 
+/// A writer error of the `mcap` crate as a [`BagError`] naming `path`. An I/O error keeps
+/// its cause ("No space left on device" on a full disk, "File too large" under a file-size
+/// limit): the `mcap` error's own text leaves it out.
+fn mcap_error(path: &Path, e: mcap::McapError) -> BagError {
+    match e {
+        mcap::McapError::Io(error) => BagError::io(path, "write", error),
+        e => BagError::write(path, e),
+    }
+}
+
 fn sync_path(path: &Path) -> Result<(), BagError> {
     File::options()
         .write(true)
@@ -533,4 +541,33 @@ pub fn message_stamp_ns(msg: &Message) -> Option<i64> {
         Message::Clock(m) => m.clock.as_nanos(),
         Message::PredictedForce(_) => return None,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A full disk or a file-size limit reaches the writer as an `mcap` I/O error, whose own
+    /// text ("I/O error from writing, …") drops the cause; the recorder must say it.
+    #[test]
+    #[cfg(target_os = "linux")] // EFBIG = 27, ENOSPC = 28
+    fn an_io_error_of_the_mcap_writer_names_the_file_and_its_cause() {
+        let path = Path::new("/data/run/run_0.mcap");
+        for (raw, cause) in [(27, "File too large"), (28, "No space left on device")] {
+            let e = mcap_error(
+                path,
+                mcap::McapError::Io(std::io::Error::from_raw_os_error(raw)),
+            );
+            let text = e.to_string();
+            assert!(
+                text.starts_with("/data/run/run_0.mcap: cannot write: ") && text.contains(cause),
+                "{text}"
+            );
+        }
+        let e = mcap_error(path, mcap::McapError::TooManyChannels).to_string();
+        assert!(
+            e.starts_with("/data/run/run_0.mcap: cannot write bag: "),
+            "{e}"
+        );
+    }
 }
