@@ -98,14 +98,10 @@ impl ZenohTransport {
         for &t in publish {
             let key = cfg.key(damper, t);
             let congestion = zenoh::qos::CongestionControl::Block;
-            // The per-sample topics go out at once (express: not held for a batch); the
-            // periodic ones may wait for company.
-            let express = matches!(t, Topic::Sample | Topic::Output | Topic::PredictedForce);
             let p = session
                 .declare_publisher(key.clone())
                 .encoding(zenoh::bytes::Encoding::APPLICATION_CDR)
                 .congestion_control(congestion)
-                .express(express)
                 .wait()
                 .map_err(|e| TransportError::new(NAME, format!("declare publisher {key}"), e))?;
             publishers.insert(t, p);
