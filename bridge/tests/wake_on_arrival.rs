@@ -158,13 +158,13 @@ fn a_control_request_rings_a_sleeping_server_and_not_a_polling_one() {
     wait_until(t0 + WAIT);
     assert_rung("control", t0.elapsed());
     assert_eq!(serve(&mut server), 1);
-    let reply = loop {
+    let reply = |client: &mut ControlClient, since: Instant| loop {
         if let Some(r) = client.receive().unwrap() {
             break r;
         }
-        assert!(t0.elapsed() < WAIT, "no reply");
+        assert!(since.elapsed() < WAIT, "no reply");
     };
-    assert_eq!(reply.server_sleeps, 1);
+    assert_eq!(reply(&mut client, t0).server_sleeps, 1);
     // The server now busy polls: the next reply tells the client, which stops notifying
     // while it sends within half the server's hot window, and notifies after a pause.
     server.set_sleeps(false);
@@ -172,13 +172,7 @@ fn a_control_request_rings_a_sleeping_server_and_not_a_polling_one() {
     client.send(&request(2)).unwrap();
     wait_until(Instant::now() + WAIT);
     assert_eq!(serve(&mut server), 1);
-    let reply = loop {
-        if let Some(r) = client.receive().unwrap() {
-            break r;
-        }
-        assert!(t_send2.elapsed() < WAIT, "no reply");
-    };
-    assert_eq!(reply.server_sleeps, 0);
+    assert_eq!(reply(&mut client, t_send2).server_sleeps, 0);
     let gap = t_send2.elapsed();
     client.send(&request(3)).unwrap();
     if gap < bridge::iceoryx2::POLLING_SERVER_STAYS_HOT / 2 {

@@ -24,7 +24,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-use bridge::transport::{Message, Topic, Transport};
+use bridge::transport::{Message, Topic};
 use node::config::TwinNodeParams;
 use node::runner::{StopWhen, TwinNode};
 use node::transports::{open, TransportKind, TransportSettings};
@@ -137,39 +137,24 @@ fn run(c: &Case, path: Path, rate: f64, seconds: f64) -> Row {
     let low_latency = matches!(path, Path::Twin { low_latency: true });
     let (params, client) = c.params(low_latency);
     let stop = Arc::new(AtomicBool::new(false));
-    let (twin, mut source, sink_topic, mut sink): (_, Box<dyn Transport>, Topic, _) = match path {
-        Path::Twin { .. } => {
-            let twin = spawn_twin(params.clone(), stop.clone());
-            let src = open(
-                c.kind,
-                &settings(&client, "bench_source"),
-                &[Topic::Sample],
-                &[],
-            );
-            let sink = open(
-                c.kind,
-                &settings(&client, "bench_sink"),
-                &[],
-                &[Topic::Output],
-            );
-            (Some(twin), src.unwrap(), Topic::Output, sink.unwrap())
-        }
-        Path::Bare => {
-            let src = open(
-                c.kind,
-                &settings(&params, "bench_source"),
-                &[Topic::Sample],
-                &[],
-            );
-            let sink = open(
-                c.kind,
-                &settings(&client, "bench_sink"),
-                &[],
-                &[Topic::Sample],
-            );
-            (None, src.unwrap(), Topic::Sample, sink.unwrap())
-        }
+    // Twin: source and sink are the twin's clients, the sink reads its outputs. Bare: the
+    // source takes the twin's place (its settings), the sink reads the samples.
+    let (twin, source_params, sink_topic) = match path {
+        Path::Twin { .. } => (
+            Some(spawn_twin(params.clone(), stop.clone())),
+            &client,
+            Topic::Output,
+        ),
+        Path::Bare => (None, &params, Topic::Sample),
     };
+    let mut source = open(
+        c.kind,
+        &settings(source_params, "bench_source"),
+        &[Topic::Sample],
+        &[],
+    )
+    .unwrap();
+    let mut sink = open(c.kind, &settings(&client, "bench_sink"), &[], &[sink_topic]).unwrap();
     // Discovery / connection.
     std::thread::sleep(Duration::from_secs(3));
     let n = (rate * seconds) as u64;

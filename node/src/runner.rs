@@ -172,8 +172,8 @@ impl TwinNode {
     }
 
     /// Bind the doorbells of the sources the loop reads (input transport, control
-    /// service) to the calling thread; `false` when one of them cannot ring, so the loop
-    /// must poll it on a timer.
+    /// service) to the calling thread; `false` when the input transport cannot ring (the
+    /// control service always can), so the loop must poll it on a timer.
     fn bind_doorbells(&self) -> bool {
         #[cfg(feature = "iceoryx2")]
         if let Some(c) = &self.control {

@@ -24,7 +24,7 @@ use crate::wake::Doorbell;
 const STOP_CHECK: Duration = Duration::from_millis(50);
 
 /// The name of `service`'s companion event service.
-pub(super) fn wake_service_name(service: &str) -> String {
+fn wake_service_name(service: &str) -> String {
     format!("{service}/wake")
 }
 
