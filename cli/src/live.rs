@@ -34,6 +34,9 @@ pub struct DemoArgs {
     /// Sample rate of the stand [Hz].
     #[arg(long, value_name = "HZ", default_value_t = 1000.0)]
     pub rate: f64,
+    /// First element of every zenoh key (tests give their own; users keep `mrtwin`).
+    #[arg(long, value_name = "PREFIX", default_value = "mrtwin")]
+    pub key_prefix: String,
 }
 
 /// One line per second.
@@ -61,8 +64,11 @@ fn free_port() -> Result<u16> {
         .port())
 }
 
-/// The demo's twin and stand: the twin listens on a loopback port, the stand and the
-/// monitor connect to it (no multicast needed).
+/// The demo's twin and stand, as a user finds them: the twin listens on a loopback port
+/// that the stand and the monitor connect to (so the demo runs without multicast too),
+/// and both answer zenoh's multicast scouting like any `mrtwin node`, so a stock zenoh
+/// peer on this machine in its default configuration finds them; ROS 2 on the domain
+/// asked for (0 by default). Every listener stays on loopback.
 fn configure(args: &DemoArgs, damper: &str, port: u16) -> (TwinNodeParams, StandParams) {
     let all = TransportKind::ALL.to_vec();
     let mut twin = TwinNodeParams {
@@ -71,8 +77,8 @@ fn configure(args: &DemoArgs, damper: &str, port: u16) -> (TwinNodeParams, Stand
         input: args.input,
         ..Default::default()
     };
-    twin.zenoh.multicast_scouting = false;
     twin.zenoh.listen = vec![format!("tcp/127.0.0.1:{port}")];
+    twin.zenoh.key_prefix.clone_from(&args.key_prefix);
     twin.ros2.domain_id = args.domain_id;
     let mut stand = StandParams {
         damper: damper.to_string(),
@@ -85,11 +91,44 @@ fn configure(args: &DemoArgs, damper: &str, port: u16) -> (TwinNodeParams, Stand
         segment_duration_s: 3.0,
         ..Default::default()
     };
-    stand.zenoh.multicast_scouting = false;
     stand.zenoh.connect = vec![format!("tcp/127.0.0.1:{port}")];
+    stand.zenoh.key_prefix.clone_from(&args.key_prefix);
     stand.ros2.domain_id = args.domain_id;
     stand.ros2.node_name = "mrtwin_stand".into();
     (twin, stand)
+}
+
+/// Copy-paste commands that look at the running demo from other tools on this machine.
+pub fn look_commands(args: &DemoArgs, twin: &TwinNodeParams, port: u16) -> String {
+    let keys = format!("{}/{}/**", twin.zenoh.key_prefix, twin.damper);
+    let domain = if args.domain_id == 0 {
+        String::new()
+    } else {
+        format!("ROS_DOMAIN_ID={} ", args.domain_id)
+    };
+    let ros = |topic: Topic| twin.ros2.resolve(topic);
+    [
+        "look at it while it runs (copy-paste into another terminal):".to_string(),
+        format!(
+            "  zenoh, a stock peer in its default configuration (pip install eclipse-zenoh); \
+             messages per key in 3 s:\n    python3 -c 'import collections, time, zenoh; \
+             n = collections.Counter(); s = zenoh.open(zenoh.Config()); \
+             sub = s.declare_subscriber(\"{keys}\", lambda x: n.update([str(x.key_expr)])); \
+             time.sleep(3); s.close(); print(dict(n))'"
+        ),
+        format!("  zenoh, connecting to the twin directly: z_sub -k '{keys}' -e tcp/127.0.0.1:{port}"),
+        format!(
+            "  ROS 2 (domain {}): {domain}ros2 topic echo {}   ·   {domain}ros2 topic echo {}",
+            args.domain_id,
+            ros(Topic::PredictedForce),
+            ros(Topic::Diagnostics)
+        ),
+        format!(
+            "  rclpy without a ROS install: python3 examples/rclpy-listener/listener.py --domain-id {}",
+            args.domain_id
+        ),
+    ]
+    .join("\n")
 }
 
 /// Twin outputs received per transport (in [`TransportKind::ALL`] order).
@@ -182,6 +221,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         "mrtwin demo: stand ({} Hz, {} model, currents {:?} A, frequencies {:?} Hz) → twin ({} in; ROS 2 domain {}, zenoh tcp/127.0.0.1:{port}, iceoryx2 mrtwin/{damper}) for {} s",
         args.rate, stand.model, stand.currents_a, stand.frequencies_hz, args.input, args.domain_id, args.duration
     );
+    println!("{}", look_commands(args, &twin, port));
     let mut node = TwinNode::new(twin.clone(), "/mrtwin_twin").context("start the twin node")?;
     let mut stand_node =
         StandNode::new(stand.clone(), "/mrtwin_stand").context("start the stand node")?;

@@ -473,6 +473,165 @@ fn demo_runs_stand_and_twin_over_all_three_transports() {
     assert!(out.contains("yield stress at 0.50 A"), "{out}");
 }
 
+/// Two stock zenoh peers in their default configuration, one putting and one
+/// subscribing: whether multicast scouting works on this machine at all.
+const MULTICAST_PROBE: &str = r#"
+import sys, time, threading, zenoh
+key = sys.argv[1]
+sub_session = zenoh.open(zenoh.Config())
+got = threading.Event()
+sub = sub_session.declare_subscriber(key, lambda s: got.set())
+pub_session = zenoh.open(zenoh.Config())
+deadline = time.time() + 8
+while not got.is_set() and time.time() < deadline:
+    pub_session.put(key, b"probe")
+    time.sleep(0.1)
+seen = got.is_set()
+sub_session.close()
+pub_session.close()
+print("seen" if seen else "unseen")
+"#;
+
+/// Messages per key in 3 s from a zenoh peer that connects to `endpoint` (argv 1) and
+/// subscribes to `keys` (argv 2).
+const DIRECT_COUNT: &str = r#"
+import collections, json, sys, time, zenoh
+conf = zenoh.Config()
+conf.insert_json5("connect/endpoints", json.dumps([sys.argv[1]]))
+conf.insert_json5("scouting/multicast/enabled", "false")
+n = collections.Counter()
+s = zenoh.open(conf)
+sub = s.declare_subscriber(sys.argv[2], lambda x: n.update([str(x.key_expr)]))
+time.sleep(3)
+s.close()
+print(dict(n))
+"#;
+
+#[test]
+#[cfg(all(feature = "ros2", feature = "zenoh", feature = "iceoryx2"))]
+fn a_stock_zenoh_peer_sees_the_demo_with_the_command_it_prints() {
+    use std::io::{BufRead, BufReader};
+    let _serial = serial();
+    // The test's own key prefix and domain; everything else is what a user gets.
+    let prefix = format!("mrtwin_look{}", std::process::id());
+    let mut demo = ChildGuard::spawn(mrtwin().args([
+        "demo",
+        "--duration",
+        "20",
+        "--domain-id",
+        "94",
+        "--key-prefix",
+        &prefix,
+    ]));
+    let stdout = demo
+        .0
+        .as_mut()
+        .and_then(|c| c.stdout.take())
+        .expect("stdout");
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    let mut printed = Vec::new();
+    let deadline = std::time::Instant::now() + Duration::from_secs(30);
+    // The first live line comes after the commands: by then the twin publishes.
+    while !printed.iter().any(|l: &String| l.starts_with("t=")) {
+        let left = deadline.saturating_duration_since(std::time::Instant::now());
+        match rx.recv_timeout(left) {
+            Ok(line) => printed.push(line),
+            Err(e) => panic!(
+                "demo printed no live line within 30 s ({e}):\n{}",
+                printed.join("\n")
+            ),
+        }
+    }
+    let command = printed
+        .iter()
+        .find_map(|l| l.trim().strip_prefix("python3 -c "))
+        .unwrap_or_else(|| panic!("no zenoh command printed:\n{}", printed.join("\n")))
+        .to_string();
+    assert!(
+        command.contains(&format!("{prefix}/demo")) && command.contains("zenoh.Config()"),
+        "the command subscribes with zenoh's default configuration to the demo's keys: {command}"
+    );
+    assert!(
+        printed
+            .iter()
+            .any(|l| l.contains("ROS_DOMAIN_ID=94 ros2 topic echo /twin/predicted_force")),
+        "{}",
+        printed.join("\n")
+    );
+    // Run it as pasted, with the interop venv's python3 first on PATH.
+    let py = mrtwin_tests::python();
+    let path = format!(
+        "{}:{}",
+        py.parent().expect("venv bin").display(),
+        std::env::var("PATH").unwrap_or_default()
+    );
+    let run = |cmd: &str| {
+        let child = ChildGuard::spawn(
+            Command::new("bash")
+                .args(["-c", &format!("python3 -c {cmd}")])
+                .env("PATH", &path),
+        );
+        let (ok, out, err) = child.wait(Duration::from_secs(30));
+        assert!(ok, "the printed command failed:\n{err}\n{out}");
+        out
+    };
+    let out = run(&command);
+    let count = |topic: &str| -> u64 {
+        let key = format!("'{prefix}/");
+        out.split(", ")
+            .filter(|kv| kv.contains(&key) && kv.contains(&format!("/{topic}'")))
+            .find_map(|kv| {
+                kv.rsplit(": ")
+                    .next()?
+                    .trim_matches(['}', '\n'])
+                    .parse()
+                    .ok()
+            })
+            .unwrap_or(0)
+    };
+    if count("twin/output") == 0 {
+        // Nothing seen: tell a machine without multicast from a demo that is not
+        // discoverable. Without multicast the user's way in is the direct endpoint.
+        let probe = run_python(
+            MULTICAST_PROBE,
+            &[&format!("{prefix}/probe")],
+            Duration::from_secs(30),
+        );
+        assert!(
+            probe.contains("unseen"),
+            "stock peers see each other here, but not the demo: {out}"
+        );
+        eprintln!(
+            "multicast scouting does not work on this machine: checking the demo's direct endpoint"
+        );
+        let endpoint = printed
+            .iter()
+            .find_map(|l| l.split(" -e ").nth(1))
+            .expect("direct endpoint printed")
+            .trim()
+            .to_string();
+        let keys = format!("{prefix}/**");
+        let direct = run_python(DIRECT_COUNT, &[&endpoint, &keys], Duration::from_secs(30));
+        assert!(direct.contains("/twin/output"), "{direct}");
+        return;
+    }
+    // 3 s of a 1 kHz twin; discovery may cost the first few hundred milliseconds.
+    assert!(count("twin/output") > 1500, "{out}");
+    assert!(
+        count("sensor/sample") > 1500,
+        "the stand is discoverable too: {out}"
+    );
+    assert!(count("diagnostics") >= 1, "{out}");
+    drop(demo);
+}
+
 #[test]
 #[cfg(feature = "zenoh")]
 fn launch_brings_up_twin_and_stand_and_stops_them() {
