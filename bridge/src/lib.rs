@@ -10,12 +10,15 @@
 //!   features: [`ros2`] (DDS via ros2-client), [`zenoh`], [`iceoryx2`] (shared memory).
 //!   Their settings (`Ros2Config`, `ZenohConfig`, `Iceoryx2Config`) are compiled in every
 //!   build, so one parameter file reads the same whatever the build holds.
+//! - [`params`]: the parameters a node serves through a middleware's own tools
+//!   ([`params::ParamService`]; the ROS 2 adapter serves them as ROS 2 parameters).
 //! - [`wake`]: the [`wake::Doorbell`] an adapter rings when a message arrives, so the loop
 //!   that reads it sleeps until then.
 
 pub mod bag;
 pub mod csv;
 pub mod iceoryx2;
+pub mod params;
 pub mod qos;
 pub mod ros2;
 pub mod transport;

@@ -22,6 +22,7 @@ pub mod config;
 pub mod core;
 pub mod diagnostics;
 pub mod fit;
+pub mod parameters;
 pub mod pipeline;
 pub mod runner;
 pub mod stand;

@@ -13,8 +13,10 @@
 //! 2 ms of quiet: a core busy while samples flow, for the shortest wake-up.
 
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use bridge::params::ParamService;
 use bridge::transport::{Message, Topic, Transport, TransportError};
 use estimation::health::{Check, Level};
 use estimation::online::Tau0Estimate;
@@ -22,8 +24,9 @@ use estimation::online::Tau0Estimate;
 use crate::conditioning::{SensorSample, StreamCounters};
 use crate::config::{InvalidParam, TwinNodeParams};
 use crate::core::{CoreError, TwinCore};
+use crate::parameters::TwinParameters;
 use crate::pipeline::{Processed, TwinPipeline, TwinStep};
-use crate::transports::{open, TransportKind};
+use crate::transports::{open_serving, TransportKind};
 
 /// Why a node could not start.
 #[derive(Debug, thiserror::Error)]
@@ -102,6 +105,9 @@ pub const PARAMS_POLL_S: f64 = 0.5;
 pub struct TwinNode {
     core: TwinCore,
     params_source: Option<ParamsSource>,
+    /// The parameters served to the middleware's tools (ROS 2 parameters); a set is
+    /// taken before the next sample.
+    served: Arc<TwinParameters>,
     /// What the input transport delivered this loop turn (kept to reuse its buffer).
     inbox: Vec<Message>,
     transports: Vec<(TransportKind, Box<dyn Transport>)>,
@@ -139,6 +145,7 @@ impl TwinNode {
     pub fn new(params: TwinNodeParams, node_name: &str) -> Result<Self, NodeError> {
         let core = TwinCore::new(&params, node_name)?;
         let settings = params.transport_settings(node_name);
+        let served = TwinParameters::new(&params);
         let mut transports = Vec::new();
         let mut input = 0;
         for &kind in &params.transports {
@@ -148,7 +155,11 @@ impl TwinNode {
             } else {
                 &[]
             };
-            transports.push((kind, open(kind, &settings, &OUTPUTS, subscribe)?));
+            let serve: Arc<dyn ParamService> = served.clone();
+            transports.push((
+                kind,
+                open_serving(kind, &settings, &OUTPUTS, subscribe, Some(serve))?,
+            ));
         }
         #[cfg(feature = "iceoryx2")]
         let control =
@@ -162,6 +173,7 @@ impl TwinNode {
         Ok(Self {
             core,
             params_source: None,
+            served,
             inbox: Vec::new(),
             transports,
             input,
@@ -198,19 +210,35 @@ impl TwinNode {
             return;
         };
         match offer.map_err(|e| e.to_string()) {
-            Ok(params) => match self.core.reload(&params) {
-                Ok(r) => tracing::info!(
+            Ok(params) => {
+                if self.take_params(&params, "parameter file") {
+                    self.served.taken(&params);
+                }
+            }
+            Err(e) => {
+                tracing::warn!(error = %e, "new parameters refused");
+                self.core.refuse_reload(e);
+            }
+        }
+    }
+
+    /// Take `params` (from `source`); `false` when the core refused them.
+    fn take_params(&mut self, params: &TwinNodeParams, source: &str) -> bool {
+        match self.core.reload(params) {
+            Ok(r) => {
+                tracing::info!(
+                    source,
                     model = self.core.pipeline().model_id(),
                     effects = %params.effects,
                     params_version = self.core.params_version(),
                     estimator_kept = r.estimator_kept,
                     "parameters reloaded"
-                ),
-                Err(e) => tracing::warn!(error = %e, "new parameters refused"),
-            },
+                );
+                true
+            }
             Err(e) => {
-                tracing::warn!(error = %e, "new parameters refused");
-                self.core.refuse_reload(e);
+                tracing::warn!(source, error = %e, "new parameters refused");
+                false
             }
         }
     }
@@ -238,6 +266,9 @@ impl TwinNode {
             let now = Instant::now();
             if stop.reached(now) {
                 break;
+            }
+            if let Some(params) = self.served.take_pending() {
+                self.take_params(&params, "ROS 2 parameter set");
             }
             let mut busy = self.take_samples(clock(now), &mut window, &mut outbox);
             busy |= self.serve_control(clock(now), &mut window, &mut outbox);

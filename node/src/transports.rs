@@ -107,6 +107,20 @@ pub fn open(
     publish: &[Topic],
     subscribe: &[Topic],
 ) -> Result<Box<dyn Transport>, TransportError> {
+    open_serving(kind, s, publish, subscribe, None)
+}
+
+/// [`open`], with the node's parameters served where the middleware has a parameter
+/// service of its own (ROS 2); the other transports ignore them.
+pub fn open_serving(
+    kind: TransportKind,
+    s: &TransportSettings,
+    publish: &[Topic],
+    subscribe: &[Topic],
+    params: Option<std::sync::Arc<dyn bridge::params::ParamService>>,
+) -> Result<Box<dyn Transport>, TransportError> {
+    #[cfg(not(feature = "ros2"))]
+    let _ = params;
     match kind {
         #[cfg(feature = "ros2")]
         TransportKind::Ros2 => {
@@ -116,8 +130,8 @@ pub fn open(
                 .namespace
                 .parse()
                 .map_err(|e| TransportError::new("ros2", "node namespace", e))?;
-            Ok(Box::new(bridge::ros2::Ros2Transport::new(
-                &c, publish, subscribe,
+            Ok(Box::new(bridge::ros2::Ros2Transport::with_parameters(
+                &c, publish, subscribe, params,
             )?))
         }
         #[cfg(feature = "zenoh")]

@@ -13,9 +13,10 @@ use msgs::{
 };
 use ros2_client::dds::{Context, ContextOptions, Node, NodeEvent, Publisher, Subscription};
 use ros2_client::qos::{Durability, History, Reliability as QosReliability, WhenFull};
-use ros2_client::{MessageTypeName, Name, NodeName, NodeOptions, QosProfile};
+use ros2_client::{MessageTypeName, Name, NodeName, NodeOptions, ParameterValue, QosProfile};
 
 use super::{Reliability, Ros2Config, NAME};
+use crate::params::{ParamService, ParamValue};
 use crate::transport::{Message, Topic, Transport, TransportError};
 use crate::wake::Doorbell;
 
@@ -27,6 +28,54 @@ pub struct RosGraph {
     /// `(topic, type)` in ROS form (`/damper1/twin/output`, `mrtwin_msgs/msg/TwinOutput`)
     /// of every ROS topic discovered over DDS, ours included.
     pub topics: Vec<(String, String)>,
+}
+
+/// The node's options: no rosout; the parameter services when there are parameters.
+fn node_options(params: Option<Arc<dyn ParamService>>) -> NodeOptions {
+    let options = NodeOptions::new().enable_rosout(false);
+    let Some(params) = params else {
+        return options.start_parameter_services(false);
+    };
+    let mut options = options.start_parameter_services(true);
+    for (name, value) in params.declared() {
+        options = options.declare_parameter(&name, to_ros(value));
+    }
+    let check = Arc::clone(&params);
+    options
+        .parameter_validator(Box::new(move |name, value| {
+            check.check(name, &from_ros(name, value)?)
+        }))
+        .parameter_set_action(Box::new(move |name, value| {
+            params.set(name, &from_ros(name, value)?)
+        }))
+}
+
+fn to_ros(v: ParamValue) -> ParameterValue {
+    match v {
+        ParamValue::Bool(b) => ParameterValue::Boolean(b),
+        ParamValue::Integer(i) => ParameterValue::Integer(i),
+        ParamValue::Double(x) => ParameterValue::Double(x),
+        ParamValue::Text(s) => ParameterValue::String(s),
+        ParamValue::Doubles(x) => ParameterValue::DoubleArray(x),
+        ParamValue::Texts(s) => ParameterValue::StringArray(s),
+    }
+}
+
+fn from_ros(name: &str, v: &ParameterValue) -> Result<ParamValue, String> {
+    Ok(match v {
+        ParameterValue::Boolean(b) => ParamValue::Bool(*b),
+        ParameterValue::Integer(i) => ParamValue::Integer(*i),
+        ParameterValue::Double(x) => ParamValue::Double(*x),
+        ParameterValue::String(s) => ParamValue::Text(s.clone()),
+        ParameterValue::DoubleArray(x) => ParamValue::Doubles(x.clone()),
+        ParameterValue::StringArray(s) => ParamValue::Texts(s.clone()),
+        other => {
+            return Err(format!(
+                "parameter '{name}': {:?} values are not used by mrtwin",
+                other.to_parameter_type()
+            ))
+        }
+    })
 }
 
 /// DDS topic name `rt/a/b` → ROS `/a/b` (other DDS topics: `None`).
@@ -160,6 +209,18 @@ impl Ros2Transport {
         publish: &[Topic],
         subscribe: &[Topic],
     ) -> Result<Self, TransportError> {
+        Self::with_parameters(cfg, publish, subscribe, None)
+    }
+
+    /// [`Self::new`], serving `params` as the node's ROS 2 parameters (the standard
+    /// parameter services; a set is checked by the service, refused with its reason, and
+    /// otherwise handed to it). Without `params` the node serves none.
+    pub fn with_parameters(
+        cfg: &Ros2Config,
+        publish: &[Topic],
+        subscribe: &[Topic],
+        params: Option<Arc<dyn ParamService>>,
+    ) -> Result<Self, TransportError> {
         cfg.validate()?;
         let node_name = NodeName::new(cfg.namespace.as_str(), &cfg.node_name).map_err(|e| {
             TransportError::new(
@@ -178,12 +239,7 @@ impl Ros2Transport {
                 )
             })?;
         let mut node = context
-            .new_node(
-                node_name,
-                NodeOptions::new()
-                    .enable_rosout(false)
-                    .start_parameter_services(false),
-            )
+            .new_node(node_name, node_options(params))
             .map_err(|e| TransportError::new(NAME, format!("create node {fqn}"), e))?;
 
         let mut publishers = BTreeMap::new();

@@ -1,0 +1,64 @@
+"""rclpy AsyncParameterClient against an mrtwin twin (cli/tests/ros2_parameters.rs): list by
+section, get, describe, bad and good sets, and with `force` a load-cell offset that must
+show in /twin/predicted_force from the next sample. Prints one JSON line."""
+import json, sys, time
+import rclpy
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+from std_msgs.msg import Float64
+
+target, check_force = sys.argv[1], sys.argv[2] == "force"
+rclpy.init()
+node = rclpy.create_node("mrtwin_param_probe")
+client = AsyncParameterClient(node, target)
+out = {}
+def wait(fut, what):
+    rclpy.spin_until_future_complete(node, fut, timeout_sec=15)
+    if not fut.done():
+        raise SystemExit(f"no answer to {what} within 15 s")
+    return fut.result()
+out["services"] = client.wait_for_services(timeout_sec=30)
+# By section: the reply to an unprefixed list (~95 names, > one datagram) is fragmented by
+# RustDDS and never reaches a Fast DDS client (see docs/node.md, "ROS 2 parameters").
+names = [n for p in ["health", "estimator", "two_chamber", "model", "damper", "stale_after_s"] for n in wait(client.list_parameters([p], 0), "list " + p).result.names]
+out["names"] = len(names)
+out["has"] = {n: n in names for n in ["health.residual.warn", "estimator.settings.memory_s",
+                                      "two_chamber.bulk_modulus_pa", "model", "damper"]}
+def get(name):
+    v = wait(client.get_parameters([name]), "get").values[0]
+    return {"type": v.type, "double": v.double_value, "string": v.string_value}
+out["stale_before"] = get("stale_after_s")
+d = wait(client.describe_parameters(["stale_after_s"]), "describe").descriptors[0]
+out["described"] = d.name
+def set_(name, value):
+    r = wait(client.set_parameters([Parameter(name, value=value)]), "set").results[0]
+    return {"ok": r.successful, "reason": r.reason}
+out["bad"] = set_("stale_after_s", -1.0)
+out["bad_type"] = set_("stale_after_s", "soon")
+out["bad_effect"] = set_("effects", "warp_drive")
+out["stale_after_bad"] = get("stale_after_s")
+out["good"] = set_("health.residual.warn", 0.07)
+out["warn_after"] = get("health.residual.warn")
+if check_force:
+    forces = []
+    node.create_subscription(Float64, "/twin/predicted_force", lambda m: forces.append(m.data), 1000)
+    end = time.time() + 3
+    while time.time() < end:
+        rclpy.spin_once(node, timeout_sec=0.05)
+    before = len(forces)
+    offset = get("two_chamber.load_cell_offset_n")["double"]
+    out["offset_set"] = set_("two_chamber.load_cell_offset_n", offset + 50000.0)
+    end = time.time() + 2
+    while time.time() < end:
+        rclpy.spin_once(node, timeout_sec=0.05)
+    old, after = forces[:before], forces[before:]
+    shifted = [f > 30000.0 for f in after]
+    out["before"] = before
+    out["after"] = len(after)
+    out["old_max"] = max(abs(f) for f in old) if old else None
+    # outputs stepped before the set was taken (in flight when it was answered)
+    out["unshifted_after_set"] = shifted.index(True) if True in shifted else len(after)
+    out["shifted_then_all"] = all(shifted[shifted.index(True):]) if True in shifted else False
+print(json.dumps(out))
+node.destroy_node()
+rclpy.shutdown()
