@@ -151,13 +151,18 @@ fn a_control_request_rings_a_sleeping_server_and_not_a_polling_one() {
             })
             .unwrap()
     };
-    // Drain any token left on this thread, then: a request rings the sleeping server.
-    wait_until(Instant::now());
-    client.send(&request(1)).unwrap();
-    let t0 = Instant::now();
-    wait_until(t0 + WAIT);
-    assert_rung("control", t0.elapsed());
-    assert_eq!(serve(&mut server), 1);
+    // A request rings the sleeping server (any token left on this thread drained first);
+    // returns when it was sent.
+    let rings = |client: &mut ControlClient, server: &mut ControlServer, seq: u64, what: &str| {
+        wait_until(Instant::now());
+        client.send(&request(seq)).unwrap();
+        let t0 = Instant::now();
+        wait_until(t0 + WAIT);
+        assert_rung(what, t0.elapsed());
+        assert_eq!(serve(server), 1);
+        t0
+    };
+    let t0 = rings(&mut client, &mut server, 1, "control");
     let reply = |client: &mut ControlClient, since: Instant| loop {
         if let Some(r) = client.receive().unwrap() {
             break r;
@@ -187,10 +192,5 @@ fn a_control_request_rings_a_sleeping_server_and_not_a_polling_one() {
     }
     assert_eq!(serve(&mut server), 1);
     std::thread::sleep(bridge::iceoryx2::POLLING_SERVER_STAYS_HOT * 2);
-    wait_until(Instant::now());
-    client.send(&request(4)).unwrap();
-    let t0 = Instant::now();
-    wait_until(t0 + WAIT);
-    assert_rung("control after a pause", t0.elapsed());
-    assert_eq!(serve(&mut server), 1);
+    rings(&mut client, &mut server, 4, "control after a pause");
 }

@@ -99,7 +99,7 @@ fn configure(args: &DemoArgs, damper: &str, port: u16) -> (TwinNodeParams, Stand
 }
 
 /// Copy-paste commands that look at the running demo from other tools on this machine.
-pub fn look_commands(args: &DemoArgs, twin: &TwinNodeParams, port: u16) -> String {
+fn look_commands(args: &DemoArgs, twin: &TwinNodeParams, port: u16) -> String {
     let keys = format!("{}/{}/**", twin.zenoh.key_prefix, twin.damper);
     let domain = if args.domain_id == 0 {
         String::new()

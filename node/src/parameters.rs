@@ -66,8 +66,7 @@ impl TwinParameters {
     /// The parameter set after a set the loop has not taken yet (one atomic load when
     /// there is none).
     pub fn take_pending(&self) -> Option<TwinNodeParams> {
-        self.pending
-            .swap(false, Ordering::AcqRel)
+        (self.pending.load(Ordering::Acquire) && self.pending.swap(false, Ordering::AcqRel))
             .then(|| self.lock().clone())
     }
 
