@@ -202,8 +202,7 @@ pub fn calibrate(
     hold: &[String],
 ) -> Result<Calibrated> {
     let levels = current_levels(records);
-    let (mut keys, mut notes) =
-        free_parameters(config.model, &config.params, config.effects, levels)?;
+    let (mut keys, mut notes) = free_parameters(config, levels)?;
     for h in hold {
         let held = |k: &node::fit::ParamKey| {
             let key = k.key();
@@ -242,6 +241,7 @@ pub fn calibrate(
     let (holdout_start_rmse_n, _) = rms_residual(records, &predict(config, records), held);
     let split_cfg = PipelineConfig {
         params: split.params.clone(),
+        conditioning: split.conditioning.clone(),
         ..config.clone()
     };
     let pred = predict(&split_cfg, records);
@@ -331,10 +331,14 @@ pub fn run(args: &FitArgs) -> Result<()> {
         c.holdout_rmse_n,
         c.holdout_start_rmse_n
     );
+    let fitted = PipelineConfig {
+        conditioning: c.full.conditioning.clone(),
+        ..config.clone()
+    };
     write_twin_file(
         &args.out,
         &header,
-        &TwinSection::new(config.model, config.effects, &c.full.params, &config),
+        &TwinSection::new(config.model, config.effects, &c.full.params, &fitted),
     )?;
     if let Some(j) = &args.json {
         let text = serde_json::to_string_pretty(&report_json(&c, &args.recordings))?;

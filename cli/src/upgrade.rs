@@ -227,7 +227,15 @@ pub fn write_upgraded(
                 )
             }
         ),
-        &TwinSection::new(ModelKind::TwoChamber, effects, &c.full.params, &config),
+        &TwinSection::new(
+            ModelKind::TwoChamber,
+            effects,
+            &c.full.params,
+            &PipelineConfig {
+                conditioning: c.full.conditioning.clone(),
+                ..config.clone()
+            },
+        ),
     )?;
     json["upgraded"] = json!({
         "file": out.display().to_string(),
@@ -256,8 +264,7 @@ fn calibrate_upgrade(
     records: &[Vec<SensorSample>],
 ) -> Result<(crate::fit::Calibrated, Vec<String>)> {
     let levels = node::fit::current_levels(records);
-    let (base, _) =
-        node::fit::free_parameters(config.model, &config.params, config.effects, levels)?;
+    let (base, _) = node::fit::free_parameters(config, levels)?;
     let base_keys: Vec<String> = base.iter().map(|k| k.key()).collect();
     let mut held: Vec<String> = Vec::new();
     loop {

@@ -1,8 +1,8 @@
 //! Real rig records as they come (issue 17): the Dyke record's continuous command-voltage
 //! "current" is summarised, its clipped stretch found and left out, and a twin fitted on
 //! the first part of the record, with the command voltage turned into a lagging coil
-//! current, replays the rest well below the force RMS with a yield stress that stays
-//! physical.
+//! current whose lag the fit finds, replays the rest well below the force RMS with a
+//! yield stress that stays physical.
 
 use std::path::{Path, PathBuf};
 use std::process::Output;
@@ -91,20 +91,70 @@ fn a_twin_fitted_on_the_first_part_replays_the_rest_with_a_physical_yield_stress
     std::fs::write(&fit_rec, first).unwrap();
     std::fs::write(&judge_rec, rest).unwrap();
     let base = mrtwin_tests::repo_root().join("launch-config/examples/dyke-command-voltage.yaml");
-    let twin = dir.path("twin.yaml");
-    ok(
-        mrtwin(&[
+    // The driver's lag is fitted: from the example's 10 ms and from none at all (a base
+    // with `driver_lag_s: 0`), the two fits must land on the same lag, which the record
+    // then identifies to a few per cent.
+    let base_text = std::fs::read_to_string(&base).unwrap();
+    assert!(base_text.contains("driver_lag_s: 0.01"), "{base_text}");
+    let base0 = dir.path("base0.yaml");
+    std::fs::write(
+        &base0,
+        base_text.replace("driver_lag_s: 0.01", "driver_lag_s: 0.0"),
+    )
+    .unwrap();
+    let fit_lag = |base: &Path, name: &str| -> (f64, f64, String) {
+        let twin = dir.path(&format!("{name}.yaml"));
+        let json = dir.path(&format!("{name}.json"));
+        ok(
+            mrtwin(&[
+                "fit",
+                &p(&fit_rec),
+                "--params",
+                &p(base),
+                "--effects",
+                "none",
+                "--out",
+                &p(&twin),
+                "--json",
+                &p(&json),
+            ]),
             "fit",
-            &p(&fit_rec),
-            "--params",
-            &p(&base),
-            "--effects",
-            "none",
-            "--out",
-            &p(&twin),
-        ]),
-        "fit",
+        );
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let lag = report["parameters"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|q| q["key"] == "conditioning.driver_lag_s")
+            .unwrap_or_else(|| panic!("the driver lag is not fitted: {report}"))
+            .clone();
+        let written = std::fs::read_to_string(&twin).unwrap();
+        assert!(
+            written.contains(&format!("driver_lag_s: {}", lag["value"])),
+            "the fitted lag is not what was written\n{written}"
+        );
+        (
+            lag["value"].as_f64().unwrap(),
+            lag["std_error"].as_f64().unwrap(),
+            p(&twin),
+        )
+    };
+    let (lag, se, twin) = fit_lag(&base, "twin");
+    let (lag0, _, _) = fit_lag(&base0, "twin0");
+    assert!(
+        (0.002..0.05).contains(&lag) && se < 0.1 * lag,
+        "driver lag {lag} ± {se} s"
     );
+    assert!(
+        (lag - lag0).abs() < 2.0 * se,
+        "the fitted lag depends on its start: {lag} s from 10 ms, {lag0} s from none (± {se})"
+    );
+    assert!(
+        (lag - 0.01).abs() > 1e-6,
+        "the lag was not moved from its start"
+    );
+    let twin = PathBuf::from(twin);
     let written = std::fs::read_to_string(&twin).unwrap();
     assert!(
         written.contains("current_channel: command_voltage"),

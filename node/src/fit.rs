@@ -23,9 +23,9 @@ use numerics::least_squares::{
 };
 use numerics::parallel::map_indexed;
 use twin::models::{FluidLaw, ModelKind, ModelParams};
-use twin::{Effect, EffectSet};
+use twin::Effect;
 
-use crate::conditioning::SensorSample;
+use crate::conditioning::{ConditioningConfig, CurrentChannel, SensorSample};
 use crate::pipeline::{PipelineConfig, Processed, TwinPipeline};
 
 /// One parameter the fit may move, by its parameter-file key.
@@ -57,6 +57,9 @@ pub enum ParamKey {
     FieldTimeConstant,
     /// `two_chamber.heat_capacity_j_per_k` (`thermal_softening`).
     HeatCapacity,
+    /// `conditioning.driver_lag_s`: the current driver's first-order lag, when the
+    /// recording's current column is its command voltage.
+    DriverLag,
 }
 
 impl ParamKey {
@@ -76,11 +79,13 @@ impl ParamKey {
             ParamKey::FluidDensity => "two_chamber.fluid_density_kg_m3".into(),
             ParamKey::FieldTimeConstant => "two_chamber.field_time_constant_s".into(),
             ParamKey::HeatCapacity => "two_chamber.heat_capacity_j_per_k".into(),
+            ParamKey::DriverLag => "conditioning.driver_lag_s".into(),
         }
     }
 
-    /// The value in `p`.
-    pub fn get(self, p: &ModelParams) -> f64 {
+    /// The value in `cfg`.
+    pub fn get(self, cfg: &PipelineConfig) -> f64 {
+        let p = &cfg.params;
         let t = &p.two_chamber;
         match self {
             ParamKey::BinghamFriction(k) => p.bingham.friction_force_n[k],
@@ -96,11 +101,13 @@ impl ParamKey {
             ParamKey::FluidDensity => t.fluid_density_kg_m3,
             ParamKey::FieldTimeConstant => t.field_time_constant_s,
             ParamKey::HeatCapacity => t.heat_capacity_j_per_k,
+            ParamKey::DriverLag => cfg.conditioning.driver_lag_s,
         }
     }
 
-    /// Set the value in `p`.
-    pub fn set(self, p: &mut ModelParams, v: f64) {
+    /// Set the value in `cfg`.
+    pub fn set(self, cfg: &mut PipelineConfig, v: f64) {
+        let p = &mut cfg.params;
         let t = &mut p.two_chamber;
         match self {
             ParamKey::BinghamFriction(k) => p.bingham.friction_force_n[k] = v,
@@ -116,6 +123,7 @@ impl ParamKey {
             ParamKey::FluidDensity => t.fluid_density_kg_m3 = v,
             ParamKey::FieldTimeConstant => t.field_time_constant_s = v,
             ParamKey::HeatCapacity => t.heat_capacity_j_per_k = v,
+            ParamKey::DriverLag => cfg.conditioning.driver_lag_s = v,
         }
     }
 
@@ -130,6 +138,7 @@ impl ParamKey {
                 | ParamKey::FluidDensity
                 | ParamKey::FieldTimeConstant
                 | ParamKey::HeatCapacity
+                | ParamKey::DriverLag
         )
     }
 }
@@ -143,13 +152,13 @@ impl fmt::Display for ParamKey {
 /// The parameters a record can identify for `model` with `effects`, and what each
 /// choice means (the notes go into the fit's report). `current_levels` is the number of
 /// distinct current levels in the records (a continuously varying current counts as
-/// many).
+/// many). When the recording's current column is a command voltage, the driver's lag is
+/// fitted too (from [`DRIVER_LAG_START_S`] when the base gives none).
 pub fn free_parameters(
-    model: ModelKind,
-    params: &ModelParams,
-    effects: EffectSet,
+    cfg: &PipelineConfig,
     current_levels: usize,
 ) -> Result<(Vec<ParamKey>, Vec<String>), FitError> {
+    let (model, params, effects) = (cfg.model, &cfg.params, cfg.effects);
     let k = current_levels.clamp(1, 3);
     let mut notes = Vec::new();
     if k < 3 {
@@ -213,7 +222,36 @@ pub fn free_parameters(
         }
         other => return Err(FitError::UnsupportedModel(other)),
     }
+    if cfg.conditioning.current_channel == CurrentChannel::CommandVoltage {
+        notes.push(format!(
+            "conditioning.driver_lag_s: the current column is the driver's command voltage; \
+             the driver's first-order lag is fitted (from {} s when the base gives none; \
+             --hold conditioning.driver_lag_s keeps the base value), its gain is held (it \
+             only rescales the laws in current)",
+            if cfg.conditioning.driver_lag_s > 0.0 {
+                cfg.conditioning.driver_lag_s
+            } else {
+                DRIVER_LAG_START_S
+            }
+        ));
+        keys.push(ParamKey::DriverLag);
+    }
     Ok((keys, notes))
+}
+
+/// Where the fit starts the driver's lag when the base file gives none (0) \[s\]: a
+/// typical current driver and coil (Dyke's prototype: 10–20 ms).
+pub const DRIVER_LAG_START_S: f64 = 0.005;
+
+/// The value the fit starts `key` from: its value in `cfg`, or [`DRIVER_LAG_START_S`] for
+/// a driver lag of 0 (a lag is fitted as a logarithm).
+fn start_value(key: ParamKey, cfg: &PipelineConfig) -> f64 {
+    let v = key.get(cfg);
+    if key == ParamKey::DriverLag && v <= 0.0 {
+        DRIVER_LAG_START_S
+    } else {
+        v
+    }
 }
 
 /// Why a fit was refused.
@@ -307,6 +345,8 @@ pub struct FittedParam {
 pub struct FitOutcome {
     /// Parameters at the optimum.
     pub params: ModelParams,
+    /// The conditioning at the optimum (a fitted driver lag; else the base's).
+    pub conditioning: ConditioningConfig,
     /// The free parameters.
     pub fitted: Vec<FittedParam>,
     /// RMS residual over the fitted samples at the start \[N\].
@@ -450,18 +490,15 @@ pub fn fit(problem: &FitProblem<'_>) -> Result<FitOutcome, FitError> {
     let transforms = problem
         .keys
         .iter()
-        .map(|&k| Transform::new(k, k.get(&base.params), scale_floor(k, problem)))
+        .map(|&k| Transform::new(k, start_value(k, &base), scale_floor(k, problem)))
         .collect::<Result<Vec<_>, _>>()?;
     let np = problem.keys.len();
     let at = |z: &[f64]| {
-        let mut params = base.params.clone();
+        let mut cfg = base.clone();
         for ((k, t), zi) in problem.keys.iter().zip(&transforms).zip(z) {
-            k.set(&mut params, t.value(*zi));
+            k.set(&mut cfg, t.value(*zi));
         }
-        PipelineConfig {
-            params,
-            ..base.clone()
-        }
+        cfg
     };
     let residual = |z: &[f64]| -> Vec<f64> {
         let pred = predict(&at(z), problem.records);
@@ -558,7 +595,11 @@ pub fn fit(problem: &FitProblem<'_>) -> Result<FitOutcome, FitError> {
     let jtj = j.transpose() * &j;
     let std_z =
         standard_errors(&jtj, &st.residual, &problem.keys).map_err(FitError::NotIdentifiable)?;
-    let params = at(&st.z).params;
+    let PipelineConfig {
+        params,
+        conditioning,
+        ..
+    } = at(&st.z);
     let fitted = problem
         .keys
         .iter()
@@ -573,6 +614,7 @@ pub fn fit(problem: &FitProblem<'_>) -> Result<FitOutcome, FitError> {
         .collect();
     Ok(FitOutcome {
         params,
+        conditioning,
         fitted,
         start_rmse_n: (start_cost / usable as f64).sqrt(),
         rmse_n: (outcome.cost / usable as f64).sqrt(),
@@ -691,6 +733,7 @@ pub fn alternate_blocks(records: &[Vec<SensorSample>], blocks: usize) -> Vec<Vec
 mod tests {
     use super::*;
     use twin::models::{BinghamParams, TwoChamberParams};
+    use twin::EffectSet;
 
     fn bingham_record(p: &BinghamParams, noise: f64) -> Vec<SensorSample> {
         let mut rng = 12345u64;
@@ -756,7 +799,7 @@ mod tests {
             effects: EffectSet::NONE,
             ..PipelineConfig::default()
         };
-        let (keys, _) = free_parameters(cfg.model, &cfg.params, EffectSet::NONE, levels).unwrap();
+        let (keys, _) = free_parameters(&cfg, levels).unwrap();
         let problem = FitProblem {
             config: cfg,
             mask: vec![vec![true; recs[0].len()]],
@@ -767,9 +810,12 @@ mod tests {
         assert!(out.rmse_n < 11.0 && out.rmse_n > 9.0, "{}", out.rmse_n);
         assert!(out.start_rmse_n > 5.0 * out.rmse_n);
         let truth_of = |k: ParamKey| {
-            k.get(&ModelParams {
-                bingham: truth.clone(),
-                ..ModelParams::default()
+            k.get(&PipelineConfig {
+                params: ModelParams {
+                    bingham: truth.clone(),
+                    ..ModelParams::default()
+                },
+                ..PipelineConfig::default()
             })
         };
         for p in &out.fitted {
@@ -801,7 +847,7 @@ mod tests {
             effects: EffectSet::NONE,
             ..PipelineConfig::default()
         };
-        let (keys, _) = free_parameters(cfg.model, &cfg.params, EffectSet::NONE, 3).unwrap();
+        let (keys, _) = free_parameters(&cfg, 3).unwrap();
         let problem = FitProblem {
             config: cfg,
             mask: vec![vec![true; recs[0].len()]],
@@ -823,16 +869,26 @@ mod tests {
 
     #[test]
     fn the_gas_preload_is_held_and_named_with_the_load_cell_offset() {
-        let params = ModelParams {
-            two_chamber: TwoChamberParams::default(),
-            ..ModelParams::default()
+        let cfg = PipelineConfig {
+            model: ModelKind::TwoChamber,
+            params: ModelParams {
+                two_chamber: TwoChamberParams::default(),
+                ..ModelParams::default()
+            },
+            effects: EffectSet::NONE.with(Effect::GasSpring),
+            ..PipelineConfig::default()
         };
-        let effects = EffectSet::NONE.with(Effect::GasSpring);
-        let (keys, notes) = free_parameters(ModelKind::TwoChamber, &params, effects, 5).unwrap();
+        let (keys, notes) = free_parameters(&cfg, 5).unwrap();
         assert!(keys.contains(&ParamKey::GasVolume) && keys.contains(&ParamKey::LoadCellOffset));
         assert!(notes.iter().any(|n| n.contains("p0 keeps its base value")));
+        assert!(!keys.contains(&ParamKey::DriverLag));
+        let spencer = PipelineConfig {
+            model: ModelKind::Spencer,
+            effects: EffectSet::NONE,
+            ..cfg
+        };
         assert!(matches!(
-            free_parameters(ModelKind::Spencer, &params, EffectSet::NONE, 3),
+            free_parameters(&spencer, 3),
             Err(FitError::UnsupportedModel(ModelKind::Spencer))
         ));
     }
