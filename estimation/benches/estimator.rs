@@ -4,7 +4,8 @@
 //! Input: a precomputed second at 1 kHz of a 2 Hz, 10 mm stroke at 1 A through the default
 //! two-chamber damper (paper model), with 1 % force noise. Rows, in the same run:
 //! * `reference: two-chamber step` — the model step alone (the twin's own cost);
-//! * `estimator update` — one `YieldEstimator::update`;
+//! * `estimator update` — one `YieldEstimator::update` (the current held on one knot);
+//! * `estimator update, moving current` — the same with a current sweeping 0.2–1.8 A;
 //! * `estimator update + at_current` — what the node does per sample for publishing;
 //! * `health observe` — one `HealthMonitor::observe`;
 //! * `health checks (per publish)` — building every `Check` (once per /diagnostics message);
@@ -79,6 +80,27 @@ fn bench(c: &mut Criterion) {
         b.iter(|| {
             j += 1;
             let s = sample(&rec[(j as usize) % n], j as f64 * 1e-3);
+            black_box(est.update(black_box(&s)))
+        })
+    });
+
+    // The same samples with a current that never holds still (a sweep 0.2–1.8 A, period
+    // 20 s of sample time, no settling gate): every update touches two knots and solves
+    // the run of ≈ 17 adjacent knots.
+    let cfg = EstimatorConfig {
+        settle_time_s: 0.0,
+        ..EstimatorConfig::default()
+    };
+    let mut est = YieldEstimator::new(cfg, a);
+    let mut j = 0u64;
+    g.bench_function("estimator update, moving current", |b| {
+        b.iter(|| {
+            j += 1;
+            let t = j as f64 * 1e-3;
+            let s = EstimatorSample {
+                current_a: 1.0 - 0.8 * (2.0 * std::f64::consts::PI * t / 20.0).cos(),
+                ..sample(&rec[(j as usize) % n], t)
+            };
             black_box(est.update(black_box(&s)))
         })
     });

@@ -13,27 +13,32 @@
 //! δ = Δp_y/Δp, Q ∝ Δp (1 − 3δ/2 + δ³/2), so Δp − Δp_y ≈ √(8 μ L Q Δp_y/(b h³))… grows as
 //! √Q near yield and as Q far above it; without it the intercept F_y of the two-chamber
 //! damper comes out 5–15 % high (`sqrt_velocity_term`). The regressor is
-//! φ = (sgn v, sgn v √(|v|/v_ref), v/v_ref, 1, x/x_ref); the five parameters are estimated
-//! in one bin per current range, so each current keeps its own estimate while the current
-//! switches (a curve τ0(I) over the currents seen).
+//! φ = (sgn v, sgn v √(|v|/v_ref), v/v_ref, 1, x/x_ref). The five parameters are
+//! piecewise-linear laws in |I| on knots `current_bin_width_a` apart (tent weights; a
+//! current on a knot touches that knot alone), estimated jointly, so each current keeps its
+//! own estimate while the current switches and a current that never holds still is one
+//! smooth law (a curve τ0(I) over the currents seen).
 //!
 //! # Estimator and why
 //! Recursive least squares with exponential forgetting (Ljung & Söderström 1983): the model
 //! is linear in its parameters, so RLS is the exact recursive form of the batch least
-//! squares (the offline fit is its limit), costs O(p²) = 25 multiply-adds per sample, and
-//! its covariance gives the uncertainty without tuning a process-noise matrix, which a
-//! joint state–parameter UKF/EKF would need. Forgetting λ = exp(−Δt/T_mem) per used
-//! sample lets the estimate follow a weakening fluid with memory T_mem.
+//! squares (the offline fit is its limit), and its covariance gives the uncertainty
+//! without tuning a process-noise matrix, which a joint state–parameter UKF/EKF would
+//! need. Forgetting λ = exp(−Δt/T_mem) per used sample lets the estimate follow a
+//! weakening fluid with memory T_mem. In information form: the normal equations are
+//! block-tridiagonal in the knots (a sample couples only its two), each update forgets on
+//! the knots it touches (λ^h) and solves the run of adjacent knots it belongs to
+//! ([`numerics::linalg::solve_block_tridiagonal`], which also gives the covariance blocks).
 //!
 //! * Pre-yield samples are left out: |v| < `pre_yield_velocity_m_s`, or within
 //!   `pre_yield_stroke_m` of the last velocity reversal; there the force is set by the
 //!   compliance of the blocked chambers (the z-loop) and not by the flow.
-//! * Excitation gate: a bin is updated only when it has seen post-yield motion in **both**
-//!   directions within `excitation_window_s` (otherwise sgn v and the offset cannot be told
-//!   apart), and not within `settle_time_s` after the current moved to another bin (the
-//!   field's rise time).
-//! * Wind-up guard: skipped samples neither update nor forget; a bin's covariance is
-//!   only inflated by forgetting while its trace stays below `max_covariance_trace`.
+//! * Excitation gate: a sample is used only when the knot carrying its larger share has
+//!   seen post-yield motion in **both** directions within `excitation_window_s` (otherwise
+//!   sgn v and the offset cannot be told apart), and not within `settle_time_s` after the
+//!   current moved to another nearest knot (the field's rise time).
+//! * Wind-up guard: skipped samples neither update nor forget; a knot forgets only while
+//!   the trace of its covariance block stays below `max_covariance_trace`.
 //! * Uncertainty: the noise variance σ² is estimated from the normalised a-priori
 //!   innovations e²/(1 + φᵀP̄φ) with the degrees of freedom taken off; for exponentially
 //!   weighted LS the estimate's covariance is σ² P Σw²/Σw (→ σ² P/(1+λ)). Model mismatch
@@ -44,11 +49,12 @@
 //! * Bad samples (non-finite, time not increasing, a gap longer than `max_gap_s`, force at
 //!   or beyond the saturation limit) are rejected and counted; they touch no estimate.
 
+use nalgebra::{SMatrix, SVector};
 use numerics::linalg;
 use serde::{Deserialize, Serialize};
 use twin::models::{ModelKind, ModelParams};
 
-/// Number of parameters per bin.
+/// Number of parameters per knot.
 const P: usize = 5;
 
 /// Settings of the yield-stress estimator (parameter-file section `estimator`).
@@ -70,15 +76,18 @@ pub struct EstimatorConfig {
     /// a reversal the force crosses from −F_y to +F_y over the compliance of the chambers
     /// (2 F_y/k, k ≈ K A1²/V1 when the flow is blocked: the z-loop). Default 1 mm.
     pub pre_yield_stroke_m: f64,
-    /// Post-yield motion in both directions must have been seen within this time for a bin
-    /// to be updated \[s\]. Default 5 s (half a period of a 0.1 Hz test).
+    /// Post-yield motion in both directions must have been seen within this time at the
+    /// knot carrying a sample's larger share for the sample to be used \[s\]. Default 5 s
+    /// (half a period of a 0.1 Hz test).
     pub excitation_window_s: f64,
-    /// Samples within this time after the current moved to another bin are skipped (field
-    /// rise time) \[s\]. Default 0.05 s.
+    /// Samples within this time after the current moved to another nearest knot are
+    /// skipped (field rise time) \[s\]. Default 0.05 s.
     pub settle_time_s: f64,
-    /// Width of a current bin \[A\]. Default 0.1 A.
+    /// Spacing of the knots of the law in current \[A\] (the width of the bins the
+    /// estimator had before the law; the key keeps its name). Default 0.1 A.
     pub current_bin_width_a: f64,
-    /// Most bins kept; a sample whose current would need another bin is rejected. Default 64.
+    /// Most knots kept; a sample whose current would need another knot is rejected.
+    /// Default 64.
     pub max_bins: usize,
     /// Initial covariance of each (normalised) parameter, in units of σ². Default 1e8 (a flat
     /// prior: forces up to 10⁴ σ).
@@ -91,13 +100,13 @@ pub struct EstimatorConfig {
     /// Longest accepted gap between two samples \[s\]; the sample after a longer gap is
     /// rejected as a dropout. Default 0.1 s.
     pub max_gap_s: f64,
-    /// Updates a bin needs before it reports an estimate. Default 50.
+    /// Hat-weighted updates a knot needs before it reports an estimate. Default 50.
     pub min_updates: u64,
     /// Velocity scale of the viscous regressor \[m/s\]. Default 0.1.
     pub velocity_scale_m_s: f64,
     /// Displacement scale of the stiffness regressor \[m\]. Default 0.01.
     pub displacement_scale_m: f64,
-    /// A bin's τ0 counts as identified only while its σ is at most this fraction of the
+    /// A point's τ0 counts as identified only while its σ is at most this fraction of the
     /// largest τ0 of the curve; others are not published. Default 0.25.
     pub identified_max_std_ratio: f64,
 }
@@ -151,7 +160,7 @@ pub enum RejectReason {
     Dropout,
     /// |F| at or beyond `force_saturation_n`.
     Saturated,
-    /// The current would need a bin beyond `max_bins`.
+    /// The current would need a knot beyond `max_bins`.
     TooManyBins,
     /// A channel repeats one exact value (clipped or dead; its CSV column name), as the
     /// caller's conditioning found.
@@ -165,7 +174,7 @@ impl std::fmt::Display for RejectReason {
             RejectReason::TimeNotIncreasing => f.write_str("time did not increase"),
             RejectReason::Dropout => f.write_str("gap since the previous sample (dropout)"),
             RejectReason::Saturated => f.write_str("force at the sensor's saturation"),
-            RejectReason::TooManyBins => f.write_str("too many current bins"),
+            RejectReason::TooManyBins => f.write_str("too many current knots"),
             RejectReason::Stuck(channel) => write!(f, "{channel} stuck at one value"),
         }
     }
@@ -174,13 +183,13 @@ impl std::fmt::Display for RejectReason {
 /// What [`YieldEstimator::update`] did with a sample.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum UpdateOutcome {
-    /// The sample updated the estimate of its current bin.
+    /// The sample updated the law at its current.
     Updated,
     /// |v| below the pre-yield threshold: left out.
     SkippedPreYield,
-    /// The bin has not seen post-yield motion both ways recently: left out.
+    /// Its knot has not seen post-yield motion both ways recently: left out.
     SkippedNoExcitation,
-    /// Within the settling time after a change of current bin: left out.
+    /// Within the settling time after a change of the nearest knot: left out.
     SkippedSettling,
     /// Bad sample: rejected and counted.
     Rejected(RejectReason),
@@ -189,7 +198,7 @@ pub enum UpdateOutcome {
 /// τ0 at one current with its standard deviation.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Tau0Estimate {
-    /// Current \[A\] (the mean |I| of the samples used).
+    /// Current \[A\] (the hat-weighted mean |I| of the samples a knot used).
     pub current_a: f64,
     /// Yield stress τ0 \[Pa\].
     pub tau0_pa: f64,
@@ -243,93 +252,92 @@ fn ar1_inflation(lag1: f64, lag0: f64) -> f64 {
     numerics::stats::ar1_variance_inflation(rho)
 }
 
-/// RLS state of one current bin.
+/// Weight of the prior that two adjacent knots have equal parameters, in samples: about
+/// one sample's information on each difference (a knot with a 1 s memory at 1 kHz holds
+/// ≈ 1000). It decides only what the data leave open: a current held between two knots
+/// fixes their blend alone, and without it the split between them (and the blend's
+/// variance, a difference of numbers of order `initial_covariance`) would be rounding.
+const ADJACENT_KNOT_PRIOR: f64 = 1.0;
+
+type M5 = SMatrix<f64, P, P>;
+type V5 = SVector<f64, P>;
+
+/// Hat weights of a current on the knot grid: the knots `(key, h)` whose tent functions
+/// are non-zero at |I| (one knot when |I| sits on it, else the two that bracket it, with
+/// h summing to 1).
+fn hat(current_a: f64, spacing_a: f64) -> ([(i64, f64); 2], usize) {
+    let u = current_a.abs() / spacing_a;
+    let k = u.floor();
+    let w = u - k;
+    let k = k as i64;
+    // A current within 10⁻⁶ of a knot (rounding of I/Δ) is on it.
+    if w < 1e-6 {
+        ([(k, 1.0), (k + 1, 0.0)], 1)
+    } else if w > 1.0 - 1e-6 {
+        ([(k + 1, 1.0), (k + 2, 0.0)], 1)
+    } else {
+        ([(k, 1.0 - w), (k + 1, w)], 2)
+    }
+}
+
+/// One knot I_k = k Δ of the yield-force law: its block of the exponentially weighted
+/// normal equations and the statistics of the samples that touched it.
 #[derive(Debug, Clone)]
-struct Bin {
+struct Knot {
     key: i64,
-    theta: [f64; P],
-    p: [[f64; P]; P],
-    /// Σ w (e²/S) and Σ w, Σ w² of the exponentially weighted sums.
+    /// The data's information R_kk (ΦᵀΦ with forgetting, regressors weighted by the hat).
+    info: M5,
+    /// R_(k,k+1), the coupling with knot `key + 1` (zero unless that knot follows).
+    info_next: M5,
+    /// Φᵀy.
+    rhs: V5,
+    /// Parameters at the last solve.
+    theta: V5,
+    /// (R + R_prior)⁻¹ blocks at the last solve: Σ_kk and Σ_(k,k+1).
+    cov: M5,
+    cov_next: M5,
+    /// Σ (e²/S) and Σ 1, Σ 1² over the samples that touched the knot, with the knot's
+    /// forgetting; Σ h and Σ h |I| for its mean current.
     sum_e2: f64,
     sum_w: f64,
     sum_w2: f64,
-    /// Σ w |I| for the bin's mean current.
-    sum_i: f64,
-    /// Σ w ε_k ε_(k−1) of consecutive normalised innovations ε = e/√S, and the last ε.
+    sum_h: f64,
+    sum_hi: f64,
+    /// Σ ε_k ε_(k−1) of consecutive normalised innovations ε = e/√S, and the last ε.
     sum_lag1: f64,
     last_eps: Option<f64>,
-    updates: u64,
+    /// Σ h over its updates (not forgotten): the effective number of samples.
+    updates: f64,
     last_pos_s: f64,
     last_neg_s: f64,
 }
 
-impl Bin {
-    fn new(key: i64, p0: f64, sqrt_term: bool) -> Self {
-        let mut p = [[0.0; P]; P];
-        for (i, row) in p.iter_mut().enumerate() {
-            row[i] = p0;
-        }
-        if !sqrt_term {
-            // Prior: that parameter is exactly 0; it is never updated nor forgotten.
-            p[1][1] = 0.0;
-        }
+impl Knot {
+    fn new(key: i64, p0: f64) -> Self {
         Self {
             key,
-            theta: [0.0; P],
-            p,
+            info: M5::zeros(),
+            info_next: M5::zeros(),
+            rhs: V5::zeros(),
+            theta: V5::zeros(),
+            cov: M5::identity() * p0,
+            cov_next: M5::zeros(),
             sum_e2: 0.0,
             sum_w: 0.0,
             sum_w2: 0.0,
-            sum_i: 0.0,
+            sum_h: 0.0,
+            sum_hi: 0.0,
             sum_lag1: 0.0,
             last_eps: None,
-            updates: 0,
+            updates: 0.0,
             last_pos_s: f64::NEG_INFINITY,
             last_neg_s: f64::NEG_INFINITY,
         }
     }
 
-    /// Enough updates to report an estimate (`min_updates`).
+    /// Enough (hat-weighted) updates to report an estimate (`min_updates`).
     fn ready(&self, cfg: &EstimatorConfig) -> bool {
-        self.updates >= cfg.min_updates
-    }
-
-    fn trace(&self) -> f64 {
-        (0..P).map(|i| self.p[i][i]).sum()
-    }
-
-    /// One RLS step with forgetting `lambda`.
-    fn rls(&mut self, phi: &[f64; P], y: f64, lambda: f64, max_trace: f64, current: f64) {
-        // Forgetting (P̄ = P/λ) only while the covariance is bounded: the wind-up guard.
-        let lam = if self.trace() / lambda > max_trace {
-            1.0
-        } else {
-            lambda
-        };
-        let mut pphi = [0.0; P];
-        for (out, row) in pphi.iter_mut().zip(&self.p) {
-            *out = row.iter().zip(phi).map(|(p, f)| p * f).sum::<f64>() / lam;
-        }
-        let s = 1.0 + (0..P).map(|i| phi[i] * pphi[i]).sum::<f64>();
-        let e = y - (0..P).map(|i| phi[i] * self.theta[i]).sum::<f64>();
-        for (t, k) in self.theta.iter_mut().zip(&pphi) {
-            *t += k / s * e;
-        }
-        for i in 0..P {
-            for j in i..P {
-                let v = self.p[i][j] / lam - pphi[i] * pphi[j] / s;
-                self.p[i][j] = v;
-                self.p[j][i] = v;
-            }
-        }
-        self.sum_e2 = lam * self.sum_e2 + e * e / s;
-        self.sum_w = lam * self.sum_w + 1.0;
-        self.sum_w2 = lam * lam * self.sum_w2 + 1.0;
-        self.sum_i = lam * self.sum_i + current;
-        let eps = e / s.sqrt();
-        self.sum_lag1 = lam * self.sum_lag1 + self.last_eps.map_or(0.0, |p| p * eps);
-        self.last_eps = Some(eps);
-        self.updates += 1;
+        self.updates >= cfg.min_updates as f64
     }
 
     fn noise_variance(&self) -> f64 {
@@ -346,38 +354,47 @@ impl Bin {
         ar1_inflation(self.sum_lag1, self.sum_e2)
     }
 
-    fn variance(&self, k: usize) -> f64 {
-        self.noise_variance() * self.p[k][k] * self.sum_w2 / self.sum_w * self.inflation()
+    /// σ² Σw²/Σw × inflation: what turns the normalised covariance Σ into the estimate's
+    /// covariance near this knot (for exponentially weighted LS, σ² P Σw²/Σw).
+    fn scale(&self) -> f64 {
+        self.noise_variance() * self.sum_w2 / self.sum_w * self.inflation()
     }
 
-    fn estimate(&self, force_per_pa: f64) -> Tau0Estimate {
-        let var = self.variance(0);
-        Tau0Estimate {
-            current_a: self.sum_i / self.sum_w,
-            tau0_pa: self.theta[0] / force_per_pa,
-            tau0_std_pa: var.max(0.0).sqrt() / force_per_pa,
-        }
+    fn mean_current(&self) -> f64 {
+        self.sum_hi / self.sum_h
     }
 }
 
-/// The ready bins' own estimates, in the bins' (ascending current) order.
-fn ready_estimates<'a>(
-    bins: &'a [Bin],
-    cfg: &'a EstimatorConfig,
-    force_per_pa: f64,
-) -> impl Iterator<Item = Tau0Estimate> + 'a {
-    bins.iter()
-        .filter(|b| b.ready(cfg))
-        .map(move |b| b.estimate(force_per_pa))
+/// The knots' parameters and normalised covariance as a law in current: the hat
+/// interpolation of the knot parameters at |I|, with the variance of parameter `q` there.
+/// `None` when a knot the hat needs is missing.
+fn law_at(knots: &[Knot], spacing_a: f64, current_a: f64, q: usize) -> Option<(f64, f64)> {
+    let (hs, n) = hat(current_a, spacing_a);
+    let mut idx = [0usize; 2];
+    for (slot, (key, _)) in idx.iter_mut().zip(&hs[..n]) {
+        *slot = knots.binary_search_by_key(key, |k| k.key).ok()?;
+    }
+    let mut value = 0.0;
+    let mut var = 0.0;
+    for a in 0..n {
+        value += hs[a].1 * knots[idx[a]].theta[q];
+        var += hs[a].1 * hs[a].1 * knots[idx[a]].cov[(q, q)];
+    }
+    if n == 2 {
+        var += 2.0 * hs[0].1 * hs[1].1 * knots[idx[0]].cov_next[(q, q)];
+    }
+    Some((value, var))
 }
 
-/// Recursive least-squares estimator of τ0(I) with forgetting, one bin per current range.
+/// Recursive least-squares estimator of τ0(I) with forgetting: the yield force, the
+/// √-term, the viscous coefficient, the offset and the stiffness as piecewise-linear laws
+/// in |I| on knots `current_bin_width_a` apart, estimated jointly.
 #[derive(Debug, Clone)]
 pub struct YieldEstimator {
     cfg: EstimatorConfig,
     force_per_pa: f64,
-    /// Bins in ascending key (current) order.
-    bins: Vec<Bin>,
+    /// Knots in ascending key (current) order; only those a sample has touched.
+    knots: Vec<Knot>,
     last_time_s: Option<f64>,
     last_key: Option<i64>,
     settle_until_s: f64,
@@ -387,11 +404,21 @@ pub struct YieldEstimator {
     rejected: u64,
     updated: u64,
     /// The physical curve ([`Self::curve`]), refreshed after every update (the only time a
-    /// bin changes), so that [`Self::at_current`], which runs per sample, reads it without
-    /// allocating; and the buffers it is rebuilt in.
+    /// knot changes), so that [`Self::at_current`], which runs per sample, reads it without
+    /// allocating; and the buffers it and the solve use.
     curve: Vec<Tau0Estimate>,
     raw: Vec<Tau0Estimate>,
     blocks: Vec<(f64, f64, usize)>,
+    solve: Solve,
+}
+
+/// Buffers of the block-tridiagonal solve of a run of adjacent knots.
+#[derive(Debug, Clone, Default)]
+struct Solve {
+    diag: Vec<M5>,
+    upper: Vec<M5>,
+    rhs: Vec<V5>,
+    out: linalg::BlockTridiagonalSolution<P>,
 }
 
 impl YieldEstimator {
@@ -401,7 +428,7 @@ impl YieldEstimator {
         Self {
             cfg,
             force_per_pa,
-            bins: Vec::new(),
+            knots: Vec::new(),
             last_time_s: None,
             last_key: None,
             settle_until_s: f64::NEG_INFINITY,
@@ -412,6 +439,7 @@ impl YieldEstimator {
             curve: Vec::new(),
             raw: Vec::new(),
             blocks: Vec::new(),
+            solve: Solve::default(),
         }
     }
 
@@ -467,9 +495,9 @@ impl YieldEstimator {
         self.rejected += 1;
         if reason == RejectReason::Dropout {
             // Motion must be seen again after the gap.
-            for b in &mut self.bins {
-                b.last_pos_s = f64::NEG_INFINITY;
-                b.last_neg_s = f64::NEG_INFINITY;
+            for k in &mut self.knots {
+                k.last_pos_s = f64::NEG_INFINITY;
+                k.last_neg_s = f64::NEG_INFINITY;
             }
         }
         // A sample that arrived on time with bad values still marks the time: the
@@ -480,36 +508,51 @@ impl YieldEstimator {
         UpdateOutcome::Rejected(reason)
     }
 
+    /// The index of the knot `key`, inserted if new; `None` when that would exceed
+    /// `max_bins`.
+    fn knot_index(&mut self, key: i64) -> Option<usize> {
+        match self.knots.binary_search_by_key(&key, |k| k.key) {
+            Ok(i) => Some(i),
+            Err(i) => {
+                if self.knots.len() >= self.cfg.max_bins {
+                    return None;
+                }
+                self.knots
+                    .insert(i, Knot::new(key, self.cfg.initial_covariance));
+                Some(i)
+            }
+        }
+    }
+
     fn accept(&mut self, s: &EstimatorSample) -> UpdateOutcome {
         let dt = self.last_time_s.map_or(0.0, |t0| s.time_s - t0);
         self.last_time_s = Some(s.time_s);
 
         let current = s.current_a.abs();
-        let key = (current / self.cfg.current_bin_width_a).round() as i64;
+        let spacing = self.cfg.current_bin_width_a;
+        // The settling gate follows the nearest knot, as the bins did.
+        let key = (current / spacing).round() as i64;
         if self.last_key != Some(key) {
             if self.last_key.is_some() {
                 self.settle_until_s = s.time_s + self.cfg.settle_time_s;
             }
             self.last_key = Some(key);
         }
-        let idx = match self.bins.binary_search_by_key(&key, |b| b.key) {
-            Ok(i) => i,
-            Err(i) => {
-                if self.bins.len() >= self.cfg.max_bins {
+        let (hs, n) = hat(current, spacing);
+        let mut idx = [0usize; 2];
+        for a in 0..n {
+            match self.knot_index(hs[a].0) {
+                Some(i) => idx[a] = i,
+                None => {
                     self.rejected += 1;
                     return UpdateOutcome::Rejected(RejectReason::TooManyBins);
                 }
-                self.bins.insert(
-                    i,
-                    Bin::new(
-                        key,
-                        self.cfg.initial_covariance,
-                        self.cfg.sqrt_velocity_term,
-                    ),
-                );
-                i
             }
-        };
+        }
+        if n == 2 {
+            // The first insertion may have moved the second.
+            idx[0] = idx[1] - 1;
+        }
         let v = s.velocity_m_s;
         if v != 0.0 && v.signum() != self.last_sign {
             self.last_sign = v.signum();
@@ -524,34 +567,167 @@ impl YieldEstimator {
         {
             return UpdateOutcome::SkippedPreYield;
         }
-        let bin = &mut self.bins[idx];
-        if v > 0.0 {
-            bin.last_pos_s = s.time_s;
-        } else {
-            bin.last_neg_s = s.time_s;
+        for &i in &idx[..n] {
+            let k = &mut self.knots[i];
+            if v > 0.0 {
+                k.last_pos_s = s.time_s;
+            } else {
+                k.last_neg_s = s.time_s;
+            }
         }
+        // Excitation is judged at the knot that carries the larger share.
+        let main = if n == 2 && hs[1].1 > hs[0].1 {
+            idx[1]
+        } else {
+            idx[0]
+        };
         let window = self.cfg.excitation_window_s;
-        if s.time_s - bin.last_pos_s > window || s.time_s - bin.last_neg_s > window {
+        let k = &self.knots[main];
+        if s.time_s - k.last_pos_s > window || s.time_s - k.last_neg_s > window {
             return UpdateOutcome::SkippedNoExcitation;
         }
-        let phi = regressor(&self.cfg, v, s.displacement_m);
+        let phi = V5::from(regressor(&self.cfg, v, s.displacement_m));
         let lambda = (-dt / self.cfg.memory_s).exp();
-        bin.rls(
-            &phi,
-            s.force_n,
-            lambda,
-            self.cfg.max_covariance_trace,
-            current,
-        );
+        let h = [hs[0].1, hs[1].1];
+        self.rls(&idx[..n], &h[..n], &phi, s.force_n, lambda, current);
         self.updated += 1;
         self.refresh_curve();
         UpdateOutcome::Updated
     }
 
+    /// One recursive least-squares step on the knots `idx` (adjacent, hat weights `h`):
+    /// the a-priori innovation, forgetting of those knots' information, the sample's
+    /// information, and the solve of the run of adjacent knots they belong to.
+    fn rls(&mut self, idx: &[usize], h: &[f64], phi: &V5, y: f64, lambda: f64, current: f64) {
+        let knots = &mut self.knots;
+        // A-priori prediction and its normalised variance S = 1 + φ̃ᵀ Σ φ̃ (φ̃ = h ⊗ φ).
+        let mut yhat = 0.0;
+        let mut s = 1.0;
+        for (a, &i) in idx.iter().enumerate() {
+            yhat += h[a] * knots[i].theta.dot(phi);
+            s += h[a] * h[a] * (knots[i].cov * phi).dot(phi);
+        }
+        if idx.len() == 2 {
+            s += 2.0 * h[0] * h[1] * (knots[idx[0]].cov_next * phi).dot(phi);
+        }
+        let e = y - yhat;
+        // Forgetting of the touched knots' information, λ^h each (a knot that carries
+        // the whole sample forgets by λ, as a bin did), while its covariance is bounded
+        // (the wind-up guard), as the congruence R ← D R D with D = diag(√λ_k) on those
+        // knots' rows; Φᵀy is moved with it so that the estimate itself does not jump:
+        // r ← r + (D R D − R) θ.
+        let max_trace = self.cfg.max_covariance_trace;
+        let lo = idx[0].saturating_sub(1);
+        let hi = (idx[idx.len() - 1] + 1).min(knots.len() - 1);
+        let mut d = [1.0f64; 4];
+        let mut lam_of = [1.0f64; 2];
+        for (a, &i) in idx.iter().enumerate() {
+            let lam = if h[a] == 1.0 {
+                lambda
+            } else {
+                lambda.powf(h[a])
+            };
+            let lam = if knots[i].cov.trace() / lam > max_trace {
+                1.0
+            } else {
+                lam
+            };
+            lam_of[a] = lam;
+            d[i - lo] = lam.sqrt();
+        }
+        let adjacent = |knots: &[Knot], j: usize| knots[j + 1].key == knots[j].key + 1;
+        let mut dr = [V5::zeros(); 4];
+        for j in lo..=hi {
+            let dj = d[j - lo];
+            dr[j - lo] += (dj * dj - 1.0) * (knots[j].info * knots[j].theta);
+            if j < hi && adjacent(knots, j) {
+                let f = dj * d[j + 1 - lo] - 1.0;
+                if f != 0.0 {
+                    dr[j - lo] += f * (knots[j].info_next * knots[j + 1].theta);
+                    dr[j + 1 - lo] += f * (knots[j].info_next.transpose() * knots[j].theta);
+                }
+            }
+        }
+        for j in lo..=hi {
+            let dj = d[j - lo];
+            knots[j].rhs += dr[j - lo];
+            knots[j].info *= dj * dj;
+            if j < hi && adjacent(knots, j) {
+                knots[j].info_next *= dj * d[j + 1 - lo];
+            }
+        }
+        // The sample.
+        let ppt = phi * phi.transpose();
+        for (a, &i) in idx.iter().enumerate() {
+            knots[i].info += (h[a] * h[a]) * ppt;
+            knots[i].rhs += (h[a] * y) * phi;
+        }
+        if idx.len() == 2 {
+            knots[idx[0]].info_next += (h[0] * h[1]) * ppt;
+        }
+        // Statistics of the knots it touched.
+        let eps = e / s.sqrt();
+        for (a, &i) in idx.iter().enumerate() {
+            let k = &mut knots[i];
+            let lam = lam_of[a];
+            k.sum_e2 = lam * k.sum_e2 + e * e / s;
+            k.sum_w = lam * k.sum_w + 1.0;
+            k.sum_w2 = lam * lam * k.sum_w2 + 1.0;
+            k.sum_h = lam * k.sum_h + h[a];
+            k.sum_hi = lam * k.sum_hi + h[a] * current;
+            k.sum_lag1 = lam * k.sum_lag1 + k.last_eps.map_or(0.0, |p| p * eps);
+            k.last_eps = Some(eps);
+            k.updates += h[a];
+        }
+        self.solve_run(idx[0]);
+    }
+
+    /// Solve the normal equations of the run of adjacent knots that holds knot `i`, with
+    /// the flat prior `initial_covariance` and the prior [`ADJACENT_KNOT_PRIOR`] that
+    /// adjacent knots are equal: parameters and covariance blocks.
+    fn solve_run(&mut self, i: usize) {
+        let knots = &mut self.knots;
+        let mut lo = i;
+        while lo > 0 && knots[lo - 1].key + 1 == knots[lo].key {
+            lo -= 1;
+        }
+        let mut hi = i;
+        while hi + 1 < knots.len() && knots[hi].key + 1 == knots[hi + 1].key {
+            hi += 1;
+        }
+        let prior = M5::identity() / self.cfg.initial_covariance;
+        let tie = M5::identity() * ADJACENT_KNOT_PRIOR;
+        let sv = &mut self.solve;
+        sv.diag.clear();
+        sv.upper.clear();
+        sv.rhs.clear();
+        let last = hi - lo;
+        for (j, k) in knots[lo..=hi].iter().enumerate() {
+            let neighbours = usize::from(j > 0) + usize::from(j < last);
+            sv.diag.push(k.info + prior + tie * neighbours as f64);
+            sv.rhs.push(k.rhs);
+            if j < last {
+                sv.upper.push(k.info_next - tie);
+            }
+        }
+        if !linalg::solve_block_tridiagonal(&sv.diag, &sv.upper, &sv.rhs, &mut sv.out) {
+            // Not solvable (it cannot happen with a positive prior): keep the last solve.
+            return;
+        }
+        for (j, k) in knots[lo..=hi].iter_mut().enumerate() {
+            k.theta = sv.out.x[j];
+            k.cov = sv.out.inv_diag[j];
+            k.cov_next = if j < last {
+                sv.out.inv_upper[j]
+            } else {
+                M5::zeros()
+            };
+        }
+    }
+
     fn refresh_curve(&mut self) {
         self.raw.clear();
-        self.raw
-            .extend(ready_estimates(&self.bins, &self.cfg, self.force_per_pa));
+        raw_points_into(&self.knots, &self.cfg, self.force_per_pa, &mut self.raw);
         physical_curve_into(
             &self.raw,
             self.cfg.identified_max_std_ratio,
@@ -560,13 +736,9 @@ impl YieldEstimator {
         );
     }
 
-    fn ready(&self, b: &Bin) -> bool {
-        b.ready(&self.cfg)
-    }
-
     /// τ0 at this current, interpolated linearly along the physical curve ([`Self::curve`])
-    /// between the points that bracket it (or from the nearest point within half a bin
-    /// width). `None` outside the identified currents.
+    /// between the points that bracket it (or from the nearest point within half a knot
+    /// spacing). `None` outside the identified currents.
     pub fn at_current(&self, current_a: f64) -> Option<Tau0Estimate> {
         let i = current_a.abs();
         let half = 0.5 * self.cfg.current_bin_width_a;
@@ -593,42 +765,45 @@ impl YieldEstimator {
         }
     }
 
-    /// The bins' own estimates (at least `min_updates` updates), ascending current: the
-    /// regression's numbers, before [`Self::curve`] makes them physical.
+    /// The law's own estimates at the currents its samples were taken at (one point per
+    /// ready knot, at that knot's hat-weighted mean current), ascending: the regression's
+    /// numbers, before [`Self::curve`] makes them physical.
     pub fn raw_curve(&self) -> Vec<Tau0Estimate> {
-        ready_estimates(&self.bins, &self.cfg, self.force_per_pa).collect()
+        let mut out = Vec::new();
+        raw_points_into(&self.knots, &self.cfg, self.force_per_pa, &mut out);
+        out
     }
 
-    /// τ0(I) over the currents seen, made physical: bins whose σ exceeds
+    /// τ0(I) over the currents seen, made physical: points whose σ exceeds
     /// `identified_max_std_ratio` × the largest τ0 are left out (not identified), the rest
     /// are made non-decreasing in |I| by weighted isotonic regression (pool adjacent
     /// violators, weights 1/σ²: a yield stress grows with the field) and held at τ0 ≥ 0.
-    /// A pooled run of bins shares its weighted mean and σ = (Σ 1/σ²)^(−1/2).
+    /// A pooled run of points shares its weighted mean and σ = (Σ 1/σ²)^(−1/2).
     pub fn curve(&self) -> Vec<Tau0Estimate> {
         self.curve.clone()
     }
 
-    /// Force offset f0 \[N\] and its standard deviation, averaged over the ready bins with
+    /// Force offset f0 \[N\] and its standard deviation, averaged over the ready knots with
     /// inverse-variance weights (the gas preload is −f0/Ar).
     pub fn force_offset_n(&self) -> Option<(f64, f64)> {
         let mut sw = 0.0;
         let mut swx = 0.0;
-        for b in self.bins.iter().filter(|b| self.ready(b)) {
-            let var = b.variance(3);
+        for k in self.knots.iter().filter(|k| k.ready(&self.cfg)) {
+            let var = k.scale() * k.cov[(3, 3)];
             if var > 0.0 && var.is_finite() {
                 sw += 1.0 / var;
-                swx += b.theta[3] / var;
+                swx += k.theta[3] / var;
             }
         }
         (sw > 0.0).then(|| (swx / sw, (1.0 / sw).sqrt()))
     }
 
-    /// Estimated noise standard deviation of the force about the model in the bin of this
-    /// current \[N\].
+    /// Estimated noise standard deviation of the force about the model at the knot
+    /// nearest this current \[N\].
     pub fn noise_std_n(&self, current_a: f64) -> Option<f64> {
         let key = (current_a.abs() / self.cfg.current_bin_width_a).round() as i64;
-        let b = self.bins.iter().find(|b| b.key == key)?;
-        self.ready(b).then(|| b.noise_variance().sqrt())
+        let k = self.knots.iter().find(|k| k.key == key)?;
+        k.ready(&self.cfg).then(|| k.noise_variance().sqrt())
     }
 
     /// Samples rejected so far.
@@ -639,6 +814,38 @@ impl YieldEstimator {
     /// Samples that updated an estimate so far.
     pub fn updated_count(&self) -> u64 {
         self.updated
+    }
+}
+
+/// One point per ready knot, at its hat-weighted mean current Ī_k: τ0(Ī_k) from the law
+/// and its σ from the covariance blocks, scaled by that knot's noise statistics. Points
+/// closer than a quarter of the knot spacing (a held current between two knots gives
+/// both the same Ī) keep the one with the smaller σ. Ascending current.
+fn raw_points_into(
+    knots: &[Knot],
+    cfg: &EstimatorConfig,
+    force_per_pa: f64,
+    out: &mut Vec<Tau0Estimate>,
+) {
+    let spacing = cfg.current_bin_width_a;
+    for k in knots.iter().filter(|k| k.ready(cfg)) {
+        let i = k.mean_current();
+        let Some((fy, var)) = law_at(knots, spacing, i, 0) else {
+            continue;
+        };
+        let e = Tau0Estimate {
+            current_a: i,
+            tau0_pa: fy / force_per_pa,
+            tau0_std_pa: (var * k.scale()).max(0.0).sqrt() / force_per_pa,
+        };
+        match out.last_mut() {
+            Some(last) if (e.current_a - last.current_a).abs() < 0.25 * spacing => {
+                if e.tau0_std_pa < last.tau0_std_pa {
+                    *last = e;
+                }
+            }
+            _ => out.push(e),
+        }
     }
 }
 
@@ -666,7 +873,7 @@ fn physical_curve_into(
     out.extend(raw.iter().copied().filter(|e| {
         e.tau0_pa.is_finite() && e.tau0_std_pa.is_finite() && e.tau0_std_pa <= max_std_ratio * scale
     }));
-    // Pool adjacent violators: blocks of (Σ w τ, Σ w, bins).
+    // Pool adjacent violators: blocks of (Σ w τ, Σ w, points).
     blocks.clear();
     for e in out.iter() {
         let w = 1.0 / e.tau0_std_pa.max(1e-9 * scale.max(1.0)).powi(2);
@@ -683,7 +890,7 @@ fn physical_curve_into(
     let mut k = 0;
     for &(swt, sw, n) in blocks.iter() {
         for e in &mut out[k..k + n] {
-            // A bin that pools with none keeps its own numbers exactly.
+            // A point that pools with none keeps its own numbers exactly.
             if n > 1 {
                 e.tau0_pa = swt / sw;
                 e.tau0_std_pa = sw.sqrt().recip();

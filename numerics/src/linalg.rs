@@ -50,6 +50,79 @@ pub fn to_rows<const N: usize>(m: &SMatrix<f64, N, N>) -> [[f64; N]; N] {
     std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)]))
 }
 
+/// The solution of a symmetric positive definite block-tridiagonal system, with the
+/// blocks of its inverse on and next to the diagonal ([`solve_block_tridiagonal`]).
+#[derive(Debug, Clone, Default)]
+pub struct BlockTridiagonalSolution<const N: usize> {
+    /// x_j, one block per diagonal block.
+    pub x: Vec<SVector<f64, N>>,
+    /// (A⁻¹)_jj.
+    pub inv_diag: Vec<SMatrix<f64, N, N>>,
+    /// (A⁻¹)_(j,j+1); one fewer than the diagonal blocks.
+    pub inv_upper: Vec<SMatrix<f64, N, N>>,
+    /// Work space: the inverses of the forward Schur complements and the forward right-hand
+    /// sides.
+    schur_inv: Vec<SMatrix<f64, N, N>>,
+    y: Vec<SVector<f64, N>>,
+}
+
+/// Solve `A x = b` for a symmetric positive definite block-tridiagonal `A` — diagonal
+/// blocks `diag[j]` = A_jj, blocks `upper[j]` = A_(j,j+1) (A_(j+1,j) = upper\[j\]ᵀ) — by
+/// block Cholesky elimination (the block Thomas algorithm), and compute the blocks of A⁻¹
+/// on and next to the diagonal by the backward recursion of selected inversion:
+/// Σ_(n−1) = S_(n−1)⁻¹, Σ_(j,j+1) = −S_j⁻¹ U_j Σ_(j+1), Σ_j = S_j⁻¹ − Σ_(j,j+1) U_jᵀ S_j⁻¹,
+/// S_j the forward Schur complements. O(n N³); `out` is reused (no allocation once it has
+/// grown). `false` (and `out` unspecified) when a Schur complement is not positive
+/// definite or a result is not finite.
+pub fn solve_block_tridiagonal<const N: usize>(
+    diag: &[SMatrix<f64, N, N>],
+    upper: &[SMatrix<f64, N, N>],
+    rhs: &[SVector<f64, N>],
+    out: &mut BlockTridiagonalSolution<N>,
+) -> bool {
+    let n = diag.len();
+    assert!(
+        rhs.len() == n && upper.len() + 1 == n.max(1),
+        "block shapes"
+    );
+    out.schur_inv.clear();
+    out.y.clear();
+    for j in 0..n {
+        let (s, y) = if j == 0 {
+            (diag[0], rhs[0])
+        } else {
+            let l = upper[j - 1].transpose() * out.schur_inv[j - 1];
+            (diag[j] - l * upper[j - 1], rhs[j] - l * out.y[j - 1])
+        };
+        let Some(chol) = s.cholesky() else {
+            return false;
+        };
+        out.schur_inv.push(chol.inverse());
+        out.y.push(y);
+    }
+    out.x.clear();
+    out.x.resize(n, SVector::zeros());
+    out.inv_diag.clear();
+    out.inv_diag.resize(n, SMatrix::zeros());
+    out.inv_upper.clear();
+    out.inv_upper.resize(n.saturating_sub(1), SMatrix::zeros());
+    for j in (0..n).rev() {
+        let si = out.schur_inv[j];
+        if j + 1 == n {
+            out.x[j] = si * out.y[j];
+            out.inv_diag[j] = si;
+        } else {
+            out.x[j] = si * (out.y[j] - upper[j] * out.x[j + 1]);
+            let off = -(si * upper[j]) * out.inv_diag[j + 1];
+            let d = si - off * upper[j].transpose() * si;
+            out.inv_upper[j] = off;
+            out.inv_diag[j] = 0.5 * (d + d.transpose());
+        }
+    }
+    out.x.iter().all(|x| all_finite(x.as_slice()))
+        && out.inv_diag.iter().all(|m| all_finite(m.as_slice()))
+}
+
 fn all_finite(v: &[f64]) -> bool {
     v.iter().all(|x| x.is_finite())
 }
@@ -89,6 +162,54 @@ mod tests {
         // The rows round-trip through the array form.
         assert_eq!(from_rows(&to_rows(&m)), m);
         assert_eq!(to_rows(&m)[1][3], 1.0 / 5.0);
+    }
+
+    #[test]
+    fn block_tridiagonal_solve_and_inverse_blocks_match_the_dense_ones() {
+        use nalgebra::{Matrix2, Vector2};
+        // Four 2×2 blocks: a diagonally dominant SPD matrix assembled densely as well.
+        let diag: Vec<Matrix2<f64>> = (0..4)
+            .map(|j| Matrix2::new(6.0 + j as f64, 0.5, 0.5, 5.0 + 0.3 * j as f64))
+            .collect();
+        let upper: Vec<Matrix2<f64>> = (0..3)
+            .map(|j| Matrix2::new(-1.0, 0.4 * j as f64, 0.2, -0.7))
+            .collect();
+        let rhs: Vec<Vector2<f64>> = (0..4)
+            .map(|j| Vector2::new(1.0 + j as f64, -2.0 + 0.5 * j as f64))
+            .collect();
+        let mut a = DMatrix::zeros(8, 8);
+        let mut b = DVector::zeros(8);
+        for j in 0..4 {
+            a.view_mut((2 * j, 2 * j), (2, 2)).copy_from(&diag[j]);
+            b.rows_mut(2 * j, 2).copy_from(&rhs[j]);
+            if j < 3 {
+                a.view_mut((2 * j, 2 * j + 2), (2, 2)).copy_from(&upper[j]);
+                a.view_mut((2 * j + 2, 2 * j), (2, 2))
+                    .copy_from(&upper[j].transpose());
+            }
+        }
+        let inv = a.clone().try_inverse().unwrap();
+        let x = &inv * &b;
+        let mut out = BlockTridiagonalSolution::default();
+        assert!(solve_block_tridiagonal(&diag, &upper, &rhs, &mut out));
+        for j in 0..4 {
+            assert!((out.x[j] - x.rows(2 * j, 2)).norm() < 1e-12);
+            assert!((out.inv_diag[j] - inv.view((2 * j, 2 * j), (2, 2))).norm() < 1e-12);
+            if j < 3 {
+                let dense = inv.view((2 * j, 2 * j + 2), (2, 2));
+                assert!((out.inv_upper[j] - dense).norm() < 1e-12);
+            }
+        }
+        // One block: the plain inverse; an indefinite block is refused.
+        assert!(solve_block_tridiagonal(
+            &diag[..1],
+            &[],
+            &rhs[..1],
+            &mut out
+        ));
+        assert!((out.inv_diag[0] - diag[0].try_inverse().unwrap()).norm() < 1e-12);
+        let bad = [Matrix2::new(1.0, 2.0, 2.0, 1.0)];
+        assert!(!solve_block_tridiagonal(&bad, &[], &rhs[..1], &mut out));
     }
 
     #[test]
