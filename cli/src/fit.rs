@@ -239,11 +239,7 @@ pub fn calibrate(
     }
     let held = |r: usize, j: usize| !mask[r][j];
     let (holdout_start_rmse_n, _) = rms_residual(records, &predict(config, records), held);
-    let split_cfg = PipelineConfig {
-        params: split.params.clone(),
-        conditioning: split.conditioning.clone(),
-        ..config.clone()
-    };
+    let split_cfg = split.applied_to(config);
     let pred = predict(&split_cfg, records);
     let (holdout_rmse_n, _) = rms_residual(records, &pred, held);
     let mut holdout_blocks = Vec::new();
@@ -331,14 +327,11 @@ pub fn run(args: &FitArgs) -> Result<()> {
         c.holdout_rmse_n,
         c.holdout_start_rmse_n
     );
-    let fitted = PipelineConfig {
-        conditioning: c.full.conditioning.clone(),
-        ..config.clone()
-    };
+    let fitted = c.full.applied_to(&config);
     write_twin_file(
         &args.out,
         &header,
-        &TwinSection::new(config.model, config.effects, &c.full.params, &fitted),
+        &TwinSection::new(config.model, config.effects, &fitted.params, &fitted),
     )?;
     if let Some(j) = &args.json {
         let text = serde_json::to_string_pretty(&report_json(&c, &args.recordings))?;

@@ -205,6 +205,7 @@ pub fn write_upgraded(
     let (c, held) = calibrate_upgrade(&config, &up_config, records)?;
     // The full fit ran through the same pipeline on every sample: its RMS is the replay's.
     let up_rmse = c.full.rmse_n;
+    let fitted = c.full.applied_to(&config);
     write_twin_file(
         out,
         &format!(
@@ -227,15 +228,7 @@ pub fn write_upgraded(
                 )
             }
         ),
-        &TwinSection::new(
-            ModelKind::TwoChamber,
-            effects,
-            &c.full.params,
-            &PipelineConfig {
-                conditioning: c.full.conditioning.clone(),
-                ..config.clone()
-            },
-        ),
+        &TwinSection::new(ModelKind::TwoChamber, effects, &fitted.params, &fitted),
     )?;
     json["upgraded"] = json!({
         "file": out.display().to_string(),

@@ -403,9 +403,10 @@ pub struct YieldEstimator {
     reversal_x_m: f64,
     rejected: u64,
     updated: u64,
-    /// The physical curve ([`Self::curve`]), refreshed after every update (the only time a
-    /// knot changes), so that [`Self::at_current`], which runs per sample, reads it without
-    /// allocating; and the buffers it and the solve use.
+    /// The physical curve ([`Self::curve`]) and the law's points it is made from
+    /// ([`Self::raw_curve`]), refreshed after every update (the only time a knot changes),
+    /// so that [`Self::at_current`], which runs per sample, reads it without allocating;
+    /// and the buffers of the pooling and the solve.
     curve: Vec<Tau0Estimate>,
     raw: Vec<Tau0Estimate>,
     blocks: Vec<(f64, f64, usize)>,
@@ -548,10 +549,6 @@ impl YieldEstimator {
                     return UpdateOutcome::Rejected(RejectReason::TooManyBins);
                 }
             }
-        }
-        if n == 2 {
-            // The first insertion may have moved the second.
-            idx[0] = idx[1] - 1;
         }
         let v = s.velocity_m_s;
         if v != 0.0 && v.signum() != self.last_sign {
@@ -769,9 +766,7 @@ impl YieldEstimator {
     /// ready knot, at that knot's hat-weighted mean current), ascending: the regression's
     /// numbers, before [`Self::curve`] makes them physical.
     pub fn raw_curve(&self) -> Vec<Tau0Estimate> {
-        let mut out = Vec::new();
-        raw_points_into(&self.knots, &self.cfg, self.force_per_pa, &mut out);
-        out
+        self.raw.clone()
     }
 
     /// τ0(I) over the currents seen, made physical: points whose σ exceeds

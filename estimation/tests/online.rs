@@ -478,18 +478,14 @@ fn a_continuously_moving_current_gives_a_smooth_law_that_follows_the_truth() {
     let mut model = truth.model(1.0);
     let mut rng = rand::rngs::StdRng::seed_from_u64(7);
     let normal = Normal::new(0.0, NOISE_N).unwrap();
-    let (dt, w) = (1e-3, 2.0 * std::f64::consts::PI * 2.0);
-    for k in 0..80_000 {
-        let t = k as f64 * dt;
+    // The stroke of an 80 s segment; its current is replaced sample by sample.
+    let stroke = Programme::grid(0.010, &[2.0], &[1.0], 80.0, 1000.0);
+    let dt = 1.0 / stroke.rate_hz;
+    for k in 0..stroke.sample_count() {
+        let (_, t, held) = stroke.input_at(k);
         let sweep = 1.0 - 0.9 * (2.0 * std::f64::consts::PI * t / 40.0).cos();
         let current_a = sweep + 0.15 * (2.0 * std::f64::consts::PI * 0.37 * t).sin();
-        let input = twin::DamperInput {
-            displacement_m: 0.01 * (w * t).sin(),
-            velocity_m_s: 0.01 * w * (w * t).cos(),
-            acceleration_m_s2: 0.0,
-            current_a,
-            ambient_temperature_c: 25.0,
-        };
+        let input = twin::DamperInput { current_a, ..held };
         let f = model.step(&input, if k == 0 { 0.0 } else { dt }).force_n;
         est.update(&EstimatorSample {
             time_s: t,

@@ -243,6 +243,18 @@ pub fn free_parameters(
 /// typical current driver and coil (Dyke's prototype: 10–20 ms).
 pub const DRIVER_LAG_START_S: f64 = 0.005;
 
+impl FitOutcome {
+    /// `base` with the fitted model parameters and conditioning: the configuration a
+    /// replay of this fit runs (and a twin file written from it holds).
+    pub fn applied_to(&self, base: &PipelineConfig) -> PipelineConfig {
+        PipelineConfig {
+            params: self.params.clone(),
+            conditioning: self.conditioning.clone(),
+            ..base.clone()
+        }
+    }
+}
+
 /// The value the fit starts `key` from: its value in `cfg`, or [`DRIVER_LAG_START_S`] for
 /// a driver lag of 0 (a lag is fitted as a logarithm).
 fn start_value(key: ParamKey, cfg: &PipelineConfig) -> f64 {
