@@ -6,7 +6,7 @@
 
 use std::time::Duration;
 
-use mrtwin_tests::{repo_root, run_python, TempDir};
+use mrtwin_tests::{repo_root, run, run_python, succeeded, TempDir};
 
 /// Runs a Python script file with arguments (through `python -c`, so the interop venv's
 /// time limit and output draining apply).
@@ -79,5 +79,83 @@ fn quick_slice_of_the_independent_proving_ground() {
     assert!(
         false_total <= 1,
         "{false_total} false findings in 8 records"
+    );
+}
+
+/// A bi-viscous fluid whose pre-yield ramp spans half the stroke (proving-ground null
+/// seed 54: viscosity ratio 495, a civil damper whose force is a steep line up to
+/// 18 kN at 28 mm/s and nearly flat above it, 43 mm/s peak). The baseline's relative leak
+/// is the fluid's inverse viscosity ratio; from the fixed starts alone it ended in the
+/// absolute-leak basin (λ = 0) at 4.68 σ_F held-out. Nothing is hidden, so nothing may be
+/// found, and the baseline must reach the noise.
+#[test]
+fn a_bi_viscous_fluid_below_yield_over_half_the_stroke_is_fitted_to_the_noise() {
+    let dir = TempDir::new("pg-biviscous");
+    let generate = repo_root().join("scripts/proving_ground/generate.py");
+    let (csv, meta, json) = (
+        dir.path("r.csv"),
+        dir.path("r.meta.json"),
+        dir.path("d.json"),
+    );
+    run_python(
+        RUN_FILE,
+        &[
+            generate.to_str().unwrap(),
+            "--seed",
+            "54",
+            "--out",
+            csv.to_str().unwrap(),
+            "--meta",
+            meta.to_str().unwrap(),
+        ],
+        Duration::from_secs(300),
+    );
+    let report = dir.path("d.md");
+    succeeded(
+        run(
+            env!("CARGO_BIN_EXE_mrtwin"),
+            &[
+                "diagnose",
+                csv.to_str().unwrap(),
+                "--json",
+                json.to_str().unwrap(),
+                "--report",
+                report.to_str().unwrap(),
+            ],
+        ),
+        "mrtwin diagnose",
+    );
+    let read = |p: &std::path::Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+    };
+    let (m, d) = (read(&meta), read(&json));
+    assert_eq!(
+        m["hidden"].as_array().unwrap().len(),
+        0,
+        "seed 54 is a null"
+    );
+    assert_eq!(m["fluid"]["law"], "biviscous", "the scenario changed");
+    let sigma_f = m["sigma_F_N"].as_f64().unwrap();
+    let held_out = d["baseline"]["holdout_rmse_N"].as_f64().unwrap();
+    let lambda = d["baseline_parameters"]["leak_per_yield_velocity"]
+        .as_f64()
+        .unwrap();
+    let truth = 1.0 / m["fluid"]["visc_ratio"].as_f64().unwrap();
+    eprintln!(
+        "held-out {:.2} σ_F, relative leak {lambda:.5} (1/ratio {truth:.5})",
+        held_out / sigma_f
+    );
+    assert!(
+        held_out <= 1.15 * sigma_f,
+        "baseline held-out {held_out:.1} N against σ_F {sigma_f:.1} N"
+    );
+    assert!(
+        (0.67 * truth..=1.5 * truth).contains(&lambda),
+        "relative leak {lambda} against the fluid's 1/ratio {truth}"
+    );
+    assert!(
+        d["findings"].as_array().unwrap().is_empty(),
+        "false findings on a null: {}",
+        d["findings"]
     );
 }

@@ -809,14 +809,177 @@ fn normal_equations(
 /// 1/434 relative leak and 2.6 σ_F.
 pub const RELATIVE_LEAK_STARTS: [f64; 2] = [0.0, 0.05];
 
-/// The baseline fitted from each of [`RELATIVE_LEAK_STARTS`] (in parallel) with the yield
-/// softness held at 0; the lower fitting SSE wins, and the fit goes on from it with the
-/// softness free. (Free from the start, the softness runs to its bound in the first
-/// steps and the fit stops in a worse basin: bi-viscous null seed 29 of the proving
-/// ground fitted 18.2 N RMS against 6.1 N without the softness.)
+/// Largest viscous coefficient a start of [`relative_leak_start`] takes \[N s/m\].
+const C_MAX_START: f64 = 1e12;
+
+/// Relative leaks tried by [`relative_leak_start`]: bi-viscous viscosity ratios 1000 … 20.
+const RELATIVE_LEAK_GRID: [f64; 6] = [1e-3, 2e-3, 5e-3, 1e-2, 2e-2, 5e-2];
+
+/// A start in the relative-leak basin fitted to the data: for each λ of
+/// [`RELATIVE_LEAK_GRID`], every knot's F_y and c (and a force offset) are fitted on the
+/// fitting samples nearest that knot to the leaky law alone, `F = F_y Φ(c|v|/F_y, λ) sgn v`
+/// with `v_ε = λ F_y/c` and the sample's velocity error in quadrature (no filter, softness
+/// or curvature), by Gauss–Newton in (ln F_y, ln c); the λ with the lowest summed SSE gives
+/// the start. A bi-viscous fluid whose pre-yield ramp spans much of the stroke (viscosity
+/// ratio 495, ramp 21 mm/s at 43 mm/s peak: proving-ground null seed 54) is a steep line
+/// below the yield force and a flat one above it. The fixed start λ = 0.05 with the knots
+/// of a Bingham line (`a sgn v + c v`) has c two orders of magnitude too large there, and
+/// the fit ends in the absolute-leak basin.
+fn relative_leak_start(d: &Prepared, lay: &Layout, base: &[f64]) -> Vec<f64> {
+    let nk = lay.nk;
+    // Fitting samples nearest each knot.
+    let mut members: Vec<Vec<usize>> = vec![Vec::new(); nk];
+    for j in 0..d.len() {
+        if !d.train[j] || d.h[j] <= 0.0 {
+            continue;
+        }
+        let (k, lam, _) = knot_weights(&d.knots, d.i[j]);
+        let k = if lam > 0.5 { (k + 1).min(nk - 1) } else { k };
+        members[k].push(j);
+    }
+    let sse_of = |idx: &[usize], lrel: f64, q: [f64; 3]| -> f64 {
+        let (fy, c, off) = (q[0].exp(), q[1].exp(), q[2]);
+        idx.iter()
+            .map(|&j| {
+                let ve = (sample_leak(0.0, d.v_sigma[j]).powi(2) + (lrel * fy / c).powi(2)).sqrt();
+                let r = d.f[j] - off - bingham::force_leaky(d.v[j], fy, c, ve).0;
+                d.weight[j] * r * r
+            })
+            .sum()
+    };
+    let fit_knot = |idx: &[usize], lrel: f64| -> ([f64; 3], f64) {
+        if idx.is_empty() {
+            return ([0.0; 3], 0.0);
+        }
+        let fmax = idx.iter().fold(0.0f64, |m, &j| m.max(d.f[j].abs()));
+        let (mut sfv, mut svv) = (0.0, 0.0);
+        for &j in idx {
+            if d.f[j].abs() < 0.5 * fmax {
+                sfv += d.f[j] * d.v[j];
+                svv += d.v[j] * d.v[j];
+            }
+        }
+        let slope = if svv > 0.0 { (sfv / svv).max(1.0) } else { 1.0 };
+        let fy0 = (0.9 * fmax).max(1.0);
+        let fy_max = 2.0 * fy0;
+        let mut q = [fy0.ln(), (lrel * slope).clamp(C_MIN, C_MAX_START).ln(), 0.0];
+        let mut sse = sse_of(idx, lrel, q);
+        let mut mu = 1e-3;
+        for _ in 0..30 {
+            // Gauss–Newton on the residuals with a forward-difference Jacobian, damped.
+            let mut jtj = [[0.0; 3]; 3];
+            let mut jtr = [0.0; 3];
+            let step = [1e-6, 1e-6, 1e-6 * fmax.max(1.0)];
+            let model = |q: &[f64; 3], j: usize| -> f64 {
+                let (fy, c) = (q[0].exp(), q[1].exp());
+                let ve = (sample_leak(0.0, d.v_sigma[j]).powi(2) + (lrel * fy / c).powi(2)).sqrt();
+                q[2] + bingham::force_leaky(d.v[j], fy, c, ve).0
+            };
+            for &j in idx {
+                let f0 = model(&q, j);
+                let mut g = [0.0; 3];
+                for a in 0..3 {
+                    let mut qa = q;
+                    qa[a] += step[a];
+                    g[a] = (model(&qa, j) - f0) / step[a];
+                }
+                let r = d.f[j] - f0;
+                for a in 0..3 {
+                    jtr[a] += d.weight[j] * g[a] * r;
+                    for b in 0..3 {
+                        jtj[a][b] += d.weight[j] * g[a] * g[b];
+                    }
+                }
+            }
+            let mut improved = false;
+            for _ in 0..8 {
+                let m = nalgebra::Matrix3::from_fn(|a, b| {
+                    jtj[a][b]
+                        + if a == b {
+                            mu * jtj[a][a].max(1e-300)
+                        } else {
+                            0.0
+                        }
+                });
+                let Some(dq) = m
+                    .cholesky()
+                    .map(|ch| ch.solve(&nalgebra::Vector3::from(jtr)))
+                else {
+                    mu *= 10.0;
+                    continue;
+                };
+                // F_y at most twice the largest force at the knot: where the whole stroke
+                // stays below yield (a ramp wider than the stroke) F_y is not identified.
+                let trial = [
+                    (q[0] + dq[0]).clamp(FY_MIN.ln(), fy_max.ln()),
+                    (q[1] + dq[1]).clamp(C_MIN.ln(), C_MAX_START.ln()),
+                    q[2] + dq[2],
+                ];
+                if trial.iter().any(|x| !x.is_finite()) {
+                    mu *= 10.0;
+                    continue;
+                }
+                let s_trial = sse_of(idx, lrel, trial);
+                if s_trial.is_finite() && s_trial < sse {
+                    improved = (sse - s_trial) > 1e-9 * sse;
+                    q = trial;
+                    sse = s_trial;
+                    mu = (mu * 0.3).max(1e-9);
+                    break;
+                }
+                mu *= 10.0;
+            }
+            if !improved {
+                break;
+            }
+        }
+        (q, sse)
+    };
+    let mut best: Option<(f64, f64, Vec<[f64; 3]>)> = None;
+    for &lrel in &RELATIVE_LEAK_GRID {
+        let fits: Vec<([f64; 3], f64)> = members.iter().map(|idx| fit_knot(idx, lrel)).collect();
+        let total: f64 = fits.iter().map(|f| f.1).sum();
+        if best.as_ref().is_none_or(|b| total < b.0) {
+            best = Some((total, lrel, fits.into_iter().map(|f| f.0).collect()));
+        }
+    }
+    let (_, lrel, knots) = best.expect("a non-empty grid");
+    let mut theta = base.to_vec();
+    let (mut off, mut n) = (0.0, 0.0);
+    for (k, q) in knots.iter().enumerate() {
+        if members[k].is_empty() {
+            continue;
+        }
+        theta[k] = q[0].exp();
+        theta[nk + k] = q[1].exp();
+        off += q[2] * members[k].len() as f64;
+        n += members[k].len() as f64;
+    }
+    if n > 0.0 {
+        theta[lay.offset_index()] = off / n;
+    }
+    theta[lay.leak_rel_index()] = lrel;
+    theta
+}
+
+/// How much lower the fitting SSE from [`relative_leak_start`] must be than the best of
+/// the fixed [`RELATIVE_LEAK_STARTS`] to be kept: half. Its basin can fit a little better
+/// and predict worse (proving-ground seed 9, a bi-viscous fluid wholly below yield at its
+/// upper currents: SSE 0.3 % lower, held-out 2.82 → 3.30 σ_F; seed 10, a Bingham fluid at
+/// 200 Hz: 20 % lower, held-out 2.33 → 3.42 σ_F); where the fluid's pre-yield ramp is what
+/// the fixed starts miss the SSE falls 3–17× (seeds 12, 25, 42, 54).
+pub const FITTED_LEAK_START_GAIN: f64 = 0.5;
+
+/// The baseline fitted from each of [`RELATIVE_LEAK_STARTS`] and from
+/// [`relative_leak_start`] (in parallel) with the yield softness held at 0; the lower
+/// fitting SSE of the fixed starts wins, or the fitted start's when it is below
+/// [`FITTED_LEAK_START_GAIN`] times that; the fit goes on from it with the softness free.
+/// (Free from the start, the softness runs to its bound in the first steps and the fit
+/// stops in a worse basin: bi-viscous null seed 29 of the proving ground fitted 18.2 N
+/// RMS against 6.1 N without the softness.)
 pub fn fit_baseline(d: &Prepared) -> Fit {
     let (lay, theta) = baseline_start(d);
-    let starts: Vec<Vec<f64>> = RELATIVE_LEAK_STARTS
+    let mut starts: Vec<Vec<f64>> = RELATIVE_LEAK_STARTS
         .iter()
         .map(|&l| {
             let mut start = theta.clone();
@@ -824,7 +987,19 @@ pub fn fit_baseline(d: &Prepared) -> Fit {
             start
         })
         .collect();
-    let best = fit_best_of(d, &lay, &starts);
+    starts.push(relative_leak_start(d, &lay, &theta));
+    let mut fits =
+        numerics::parallel::map_indexed(starts.len(), starts.len(), |k| fit(d, &lay, &starts[k]));
+    let fitted = fits.pop().expect("the fitted start");
+    let fixed = fits
+        .into_iter()
+        .min_by(|a, b| a.train_sse.total_cmp(&b.train_sse))
+        .expect("the fixed starts");
+    let best = if fitted.train_sse < FITTED_LEAK_START_GAIN * fixed.train_sse {
+        fitted
+    } else {
+        fixed
+    };
     let soft = Layout { soft: true, ..lay };
     fit(d, &soft, &best.theta)
 }
