@@ -819,7 +819,8 @@ const RELATIVE_LEAK_GRID: [f64; 6] = [1e-3, 2e-3, 5e-3, 1e-2, 2e-2, 5e-2];
 /// [`RELATIVE_LEAK_GRID`], every knot's F_y and c (and a force offset) are fitted on the
 /// fitting samples nearest that knot to the leaky law alone, `F = F_y Φ(c|v|/F_y, λ) sgn v`
 /// with `v_ε = λ F_y/c` and the sample's velocity error in quadrature (no filter, softness
-/// or curvature), by Gauss–Newton in (ln F_y, ln c); the λ with the lowest summed SSE gives
+/// or curvature), by Levenberg–Marquardt in (ln F_y, ln c) with the law's analytic
+/// derivatives; the λ with the lowest summed SSE gives
 /// the start. A bi-viscous fluid whose pre-yield ramp spans much of the stroke (viscosity
 /// ratio 495, ramp 21 mm/s at 43 mm/s peak: proving-ground null seed 54) is a steep line
 /// below the yield force and a flat one above it. The fixed start λ = 0.05 with the knots
@@ -837,15 +838,36 @@ fn relative_leak_start(d: &Prepared, lay: &Layout, base: &[f64]) -> Vec<f64> {
         let k = if lam > 0.5 { (k + 1).min(nk - 1) } else { k };
         members[k].push(j);
     }
-    let sse_of = |idx: &[usize], lrel: f64, q: [f64; 3]| -> f64 {
-        let (fy, c, off) = (q[0].exp(), q[1].exp(), q[2]);
+    // The leaky law at sample j for q = (ln F_y, ln c, offset), and its gradient in q:
+    // v_ε = √(velocity error² + (λ F_y/c)²) moves with F_y and c.
+    let law = |q: &[f64; 3], lrel: f64, j: usize| -> (f64, [f64; 3]) {
+        let (fy, c) = (q[0].exp(), q[1].exp());
+        let rel = lrel * fy / c;
+        let ve = (sample_leak(0.0, d.v_sigma[j]).powi(2) + rel * rel).sqrt();
+        let (f, dfy, dc, dve) = bingham::force_leaky(d.v[j], fy, c, ve);
+        // ∂v_ε/∂ln F_y = rel²/v_ε = −∂v_ε/∂ln c.
+        let dve_dlog = rel * rel / ve;
+        (
+            q[2] + f,
+            [fy * dfy + dve * dve_dlog, c * dc - dve * dve_dlog, 1.0],
+        )
+    };
+    let sse_of = |idx: &[usize], lrel: f64, q: &[f64; 3]| -> f64 {
         idx.iter()
             .map(|&j| {
-                let ve = (sample_leak(0.0, d.v_sigma[j]).powi(2) + (lrel * fy / c).powi(2)).sqrt();
-                let r = d.f[j] - off - bingham::force_leaky(d.v[j], fy, c, ve).0;
+                let r = d.f[j] - law(q, lrel, j).0;
                 d.weight[j] * r * r
             })
             .sum()
+    };
+    // The loop of diagnose's model fit, with at most 30 iterations and 8 trials each, and
+    // converged at a relative SSE step of 1e-9.
+    let opts = LmOptions {
+        max_iter: 30,
+        max_tries: 8,
+        diag_floor: 1e-300,
+        rel_tol: 1e-9,
+        ..LmOptions::default()
     };
     let fit_knot = |idx: &[usize], lrel: f64| -> ([f64; 3], f64) {
         if idx.is_empty() {
@@ -861,79 +883,42 @@ fn relative_leak_start(d: &Prepared, lay: &Layout, base: &[f64]) -> Vec<f64> {
         }
         let slope = if svv > 0.0 { (sfv / svv).max(1.0) } else { 1.0 };
         let fy0 = (0.9 * fmax).max(1.0);
+        // F_y at most twice the largest force at the knot: where the whole stroke stays
+        // below yield (a ramp wider than the stroke) F_y is not identified.
         let fy_max = 2.0 * fy0;
-        let mut q = [fy0.ln(), (lrel * slope).clamp(C_MIN, C_MAX_START).ln(), 0.0];
-        let mut sse = sse_of(idx, lrel, q);
-        let mut mu = 1e-3;
-        for _ in 0..30 {
-            // Gauss–Newton on the residuals with a forward-difference Jacobian, damped.
-            let mut jtj = [[0.0; 3]; 3];
-            let mut jtr = [0.0; 3];
-            let step = [1e-6, 1e-6, 1e-6 * fmax.max(1.0)];
-            let model = |q: &[f64; 3], j: usize| -> f64 {
-                let (fy, c) = (q[0].exp(), q[1].exp());
-                let ve = (sample_leak(0.0, d.v_sigma[j]).powi(2) + (lrel * fy / c).powi(2)).sqrt();
-                q[2] + bingham::force_leaky(d.v[j], fy, c, ve).0
-            };
-            for &j in idx {
-                let f0 = model(&q, j);
-                let mut g = [0.0; 3];
-                for a in 0..3 {
-                    let mut qa = q;
-                    qa[a] += step[a];
-                    g[a] = (model(&qa, j) - f0) / step[a];
-                }
-                let r = d.f[j] - f0;
-                for a in 0..3 {
-                    jtr[a] += d.weight[j] * g[a] * r;
-                    for b in 0..3 {
-                        jtj[a][b] += d.weight[j] * g[a] * g[b];
+        let q0 = [fy0.ln(), (lrel * slope).clamp(C_MIN, C_MAX_START).ln(), 0.0];
+        let out = levenberg_marquardt(
+            q0,
+            sse_of(idx, lrel, &q0),
+            &opts,
+            |q: &[f64; 3]| {
+                let mut jtj = nalgebra::DMatrix::<f64>::zeros(3, 3);
+                let mut g = nalgebra::DVector::<f64>::zeros(3);
+                for &j in idx {
+                    let (f, grad) = law(q, lrel, j);
+                    let wr = d.weight[j] * (d.f[j] - f);
+                    for a in 0..3 {
+                        g[a] += grad[a] * wr;
+                        for b in 0..3 {
+                            jtj[(a, b)] += d.weight[j] * grad[a] * grad[b];
+                        }
                     }
                 }
-            }
-            let mut improved = false;
-            for _ in 0..8 {
-                let m = nalgebra::Matrix3::from_fn(|a, b| {
-                    jtj[a][b]
-                        + if a == b {
-                            mu * jtj[a][a].max(1e-300)
-                        } else {
-                            0.0
-                        }
-                });
-                let Some(dq) = m
-                    .cholesky()
-                    .map(|ch| ch.solve(&nalgebra::Vector3::from(jtr)))
-                else {
-                    mu *= 10.0;
-                    continue;
-                };
-                // F_y at most twice the largest force at the knot: where the whole stroke
-                // stays below yield (a ramp wider than the stroke) F_y is not identified.
+                Some((jtj, g))
+            },
+            |q: &[f64; 3], step: &nalgebra::DVector<f64>| {
                 let trial = [
-                    (q[0] + dq[0]).clamp(FY_MIN.ln(), fy_max.ln()),
-                    (q[1] + dq[1]).clamp(C_MIN.ln(), C_MAX_START.ln()),
-                    q[2] + dq[2],
+                    (q[0] + step[0]).clamp(FY_MIN.ln(), fy_max.ln()),
+                    (q[1] + step[1]).clamp(C_MIN.ln(), C_MAX_START.ln()),
+                    q[2] + step[2],
                 ];
-                if trial.iter().any(|x| !x.is_finite()) {
-                    mu *= 10.0;
-                    continue;
-                }
-                let s_trial = sse_of(idx, lrel, trial);
-                if s_trial.is_finite() && s_trial < sse {
-                    improved = (sse - s_trial) > 1e-9 * sse;
-                    q = trial;
-                    sse = s_trial;
-                    mu = (mu * 0.3).max(1e-9);
-                    break;
-                }
-                mu *= 10.0;
-            }
-            if !improved {
-                break;
-            }
-        }
-        (q, sse)
+                trial
+                    .iter()
+                    .all(|x| x.is_finite())
+                    .then(|| (trial, sse_of(idx, lrel, &trial)))
+            },
+        );
+        (out.state, out.cost)
     };
     let mut best: Option<(f64, f64, Vec<[f64; 3]>)> = None;
     for &lrel in &RELATIVE_LEAK_GRID {
@@ -991,10 +976,7 @@ pub fn fit_baseline(d: &Prepared) -> Fit {
     let mut fits =
         numerics::parallel::map_indexed(starts.len(), starts.len(), |k| fit(d, &lay, &starts[k]));
     let fitted = fits.pop().expect("the fitted start");
-    let fixed = fits
-        .into_iter()
-        .min_by(|a, b| a.train_sse.total_cmp(&b.train_sse))
-        .expect("the fixed starts");
+    let fixed = lowest_sse(fits);
     let best = if fitted.train_sse < FITTED_LEAK_START_GAIN * fixed.train_sse {
         fitted
     } else {
@@ -1006,8 +988,16 @@ pub fn fit_baseline(d: &Prepared) -> Fit {
 
 /// [`fit`] from each of `starts` (in parallel); the lowest fitting SSE wins.
 pub fn fit_best_of(d: &Prepared, lay: &Layout, starts: &[Vec<f64>]) -> Fit {
-    numerics::parallel::map_indexed(starts.len(), starts.len(), |k| fit(d, lay, &starts[k]))
-        .into_iter()
+    lowest_sse(numerics::parallel::map_indexed(
+        starts.len(),
+        starts.len(),
+        |k| fit(d, lay, &starts[k]),
+    ))
+}
+
+/// The fit of the lowest fitting SSE among `fits` (at least one).
+fn lowest_sse(fits: Vec<Fit>) -> Fit {
+    fits.into_iter()
         .min_by(|a, b| a.train_sse.total_cmp(&b.train_sse))
         .expect("at least one start")
 }
