@@ -20,7 +20,12 @@ use serde_json::{json, Value};
 use twin::models::{ModelKind, TwoChamberParams};
 use twin::{Effect, EffectSet};
 
-use crate::fit::{calibrate, write_twin_file, TwinSection};
+use crate::fit::{calibrate_with_leak_trial, write_twin_file, TwinSection};
+
+/// Widths of the twin's tanh seal friction tried when the upgrade adds one, as shares of
+/// the record's peak speed (the first, 1 %, is also the start of every other upgrade;
+/// docs/fit.md gives the profile on the UTFSM records).
+pub const FRICTION_WIDTHS: [f64; 2] = [0.01, 0.10];
 
 /// The SI value of an effect's single parameter in a diagnose finding.
 fn si_value(e: Effect, parameters: &std::collections::BTreeMap<String, Parameter>) -> Option<f64> {
@@ -187,22 +192,57 @@ pub fn write_upgraded(
         .map(|s| s.velocity_m_s.abs())
         .filter(|v| v.is_finite())
         .fold(0.0, f64::max);
-    let mut upgraded = config.params.clone();
-    for (e, si) in &found {
-        seed_effect(
-            &mut upgraded.two_chamber,
-            *e,
-            *si,
-            0.01 * peak_speed,
-            effects.has(Effect::GasSpring),
-        );
-    }
-    let up_config = PipelineConfig {
-        params: upgraded,
-        effects,
-        ..config.clone()
+    // The twin's seal friction is a tanh step whose width the fit does not move (freed,
+    // it runs off against the leak and τ_y(0)): with a friction added, the upgrade is
+    // calibrated at each width of FRICTION_WIDTHS and the lowest held-out RMS is kept.
+    let adds_friction = found.iter().any(|(e, _)| *e == Effect::SealFriction);
+    let widths: &[f64] = if adds_friction {
+        &FRICTION_WIDTHS
+    } else {
+        &FRICTION_WIDTHS[..1]
     };
-    let (c, held) = calibrate_upgrade(&config, &up_config, records)?;
+    let mut best: Option<(crate::fit::Calibrated, Vec<String>)> = None;
+    let mut first_error = None;
+    let mut profile = Vec::new();
+    for share in widths {
+        let mut upgraded = config.params.clone();
+        for (e, si) in &found {
+            seed_effect(
+                &mut upgraded.two_chamber,
+                *e,
+                *si,
+                share * peak_speed,
+                effects.has(Effect::GasSpring),
+            );
+        }
+        let up_config = PipelineConfig {
+            params: upgraded,
+            effects,
+            ..config.clone()
+        };
+        match calibrate_upgrade(&config, &up_config, records) {
+            Ok((c, held)) => {
+                profile.push(json!({
+                    "seal_friction_velocity_m_s": share * peak_speed,
+                    "holdout_rmse_n": c.holdout_rmse_n,
+                }));
+                if best
+                    .as_ref()
+                    .is_none_or(|(b, _)| c.holdout_rmse_n < b.holdout_rmse_n)
+                {
+                    best = Some((c, held));
+                }
+            }
+            Err(e) => {
+                first_error.get_or_insert(e);
+            }
+        }
+    }
+    let (c, held) = match (best, first_error) {
+        (Some(b), _) => b,
+        (None, Some(e)) => return Err(e),
+        (None, None) => bail!("--write-params: no calibration was run"),
+    };
     // The full fit ran through the same pipeline on every sample: its RMS is the replay's.
     let up_rmse = c.full.rmse_n;
     let fitted = c.full.applied_to(&config);
@@ -238,6 +278,7 @@ pub fn write_upgraded(
         "replay_ratio": up_rmse / twin_rmse,
         "fit": crate::fit::report_json(&c, &[PathBuf::from(input)]),
         "held_at_diagnose_value": held,
+        "seal_friction_width_profile": profile,
     });
     Ok(TwinCheck {
         json,
@@ -261,7 +302,7 @@ fn calibrate_upgrade(
     let base_keys: Vec<String> = base.iter().map(|k| k.key()).collect();
     let mut held: Vec<String> = Vec::new();
     loop {
-        let err = match calibrate(up_config, records, 8, &held) {
+        let err = match calibrate_with_leak_trial(up_config, records, 8, &held) {
             Ok(c) => return Ok((c, held)),
             Err(e) => e,
         };

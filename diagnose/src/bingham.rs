@@ -206,12 +206,35 @@ mod tests {
                 yield_stress_pa: tau,
                 viscosity_pa_s: mu,
             }),
+            leak_m3_per_pa_s: 0.0,
         };
         let fy = a1 * 2.0 * tau * gap.length_m / gap.height_m;
         let c = 12.0 * mu * gap.length_m * a1 * a1 / (gap.width_m * gap.height_m.powi(3));
         for v in [0.002, 0.05, 0.3] {
             let twin_f = a1 * flow.pressure_drop(a1 * v);
             let (f, _, _) = force(v, fy, c);
+            assert!((f / twin_f - 1.0).abs() < 1e-8, "{v}: {f} vs {twin_f}");
+        }
+        // With a pre-yield leak λ the twin's slit (leak conductance λ b h³/(12 μ L)) is
+        // this leaky law at v_ε = λ F_y/c, below and above the yield point.
+        let lambda = 0.05;
+        let leaky = SlitFlow {
+            leak_m3_per_pa_s: lambda * gap.width_m * gap.height_m.powi(3)
+                / (12.0 * mu * gap.length_m),
+            ..flow
+        };
+        let veps = lambda * fy / c;
+        for v in [
+            -0.2,
+            -0.5 * veps,
+            0.1 * veps,
+            0.99 * veps,
+            1.01 * veps,
+            0.01,
+            0.3,
+        ] {
+            let twin_f = a1 * leaky.pressure_drop(a1 * v);
+            let (f, _, _, _) = force_leaky(v, fy, c, veps);
             assert!((f / twin_f - 1.0).abs() < 1e-8, "{v}: {f} vs {twin_f}");
         }
     }

@@ -214,6 +214,13 @@ impl TwinNodeParams {
                 ),
             });
         }
+        let leak = self.two_chamber.fluid.pre_yield_leak;
+        if !(leak >= 0.0 && leak.is_finite()) {
+            return Err(InvalidParam {
+                key: "two_chamber.fluid.pre_yield_leak",
+                reason: format!("must be a number >= 0, got {leak}"),
+            });
+        }
         if self.conditioning.stuck_samples < 2 {
             return Err(InvalidParam {
                 key: "conditioning.stuck_samples",
@@ -318,5 +325,23 @@ mod tests {
                 assert!(e.contains(w), "{w} not in: {e}");
             }
         }
+    }
+
+    #[test]
+    fn a_negative_pre_yield_leak_is_refused_by_its_key() {
+        let p = parse("    two_chamber:\n      fluid:\n        pre_yield_leak: -0.01\n").unwrap();
+        let e = p.pipeline_config().unwrap_err();
+        assert_eq!(e.key, "two_chamber.fluid.pre_yield_leak");
+        assert!(e.reason.contains("-0.01"), "{}", e.reason);
+        let p = parse("    two_chamber:\n      fluid:\n        pre_yield_leak: 0.05\n").unwrap();
+        assert_eq!(
+            p.pipeline_config()
+                .unwrap()
+                .params
+                .two_chamber
+                .fluid
+                .pre_yield_leak,
+            0.05
+        );
     }
 }

@@ -43,6 +43,8 @@ pub enum ParamKey {
     Viscosity(usize),
     /// `two_chamber.fluid.flow_index` (Herschel–Bulkley).
     FlowIndex,
+    /// `two_chamber.fluid.pre_yield_leak` (fitted when the base file gives one).
+    PreYieldLeak,
     /// `two_chamber.load_cell_offset_n`.
     LoadCellOffset,
     /// `two_chamber.bulk_modulus_pa` (`fluid_compressibility`).
@@ -72,6 +74,7 @@ impl ParamKey {
             ParamKey::YieldStress(k) => format!("two_chamber.fluid.yield_stress_pa[{k}]"),
             ParamKey::Viscosity(k) => format!("two_chamber.fluid.viscosity_pa_s[{k}]"),
             ParamKey::FlowIndex => "two_chamber.fluid.flow_index".into(),
+            ParamKey::PreYieldLeak => "two_chamber.fluid.pre_yield_leak".into(),
             ParamKey::LoadCellOffset => "two_chamber.load_cell_offset_n".into(),
             ParamKey::BulkModulus => "two_chamber.bulk_modulus_pa".into(),
             ParamKey::GasVolume => "two_chamber.gas_volume_m3".into(),
@@ -94,6 +97,7 @@ impl ParamKey {
             ParamKey::YieldStress(k) => t.fluid.yield_stress_pa[k],
             ParamKey::Viscosity(k) => t.fluid.viscosity_pa_s[k],
             ParamKey::FlowIndex => t.fluid.flow_index,
+            ParamKey::PreYieldLeak => t.fluid.pre_yield_leak,
             ParamKey::LoadCellOffset => t.load_cell_offset_n,
             ParamKey::BulkModulus => t.bulk_modulus_pa,
             ParamKey::GasVolume => t.gas_volume_m3,
@@ -116,6 +120,7 @@ impl ParamKey {
             ParamKey::YieldStress(k) => t.fluid.yield_stress_pa[k] = v,
             ParamKey::Viscosity(k) => t.fluid.viscosity_pa_s[k] = v,
             ParamKey::FlowIndex => t.fluid.flow_index = v,
+            ParamKey::PreYieldLeak => t.fluid.pre_yield_leak = v,
             ParamKey::LoadCellOffset => t.load_cell_offset_n = v,
             ParamKey::BulkModulus => t.bulk_modulus_pa = v,
             ParamKey::GasVolume => t.gas_volume_m3 = v,
@@ -132,6 +137,7 @@ impl ParamKey {
         matches!(
             self,
             ParamKey::FlowIndex
+                | ParamKey::PreYieldLeak
                 | ParamKey::BulkModulus
                 | ParamKey::GasVolume
                 | ParamKey::SealFriction
@@ -185,6 +191,9 @@ pub fn free_parameters(
             keys.extend((0..k).map(ParamKey::Viscosity));
             if params.two_chamber.fluid.law == FluidLaw::HerschelBulkley {
                 keys.push(ParamKey::FlowIndex);
+            }
+            if params.two_chamber.fluid.pre_yield_leak > 0.0 {
+                keys.push(ParamKey::PreYieldLeak);
             }
             keys.push(ParamKey::LoadCellOffset);
             for e in effects.iter() {

@@ -14,6 +14,12 @@
 //! * Bodner–Partom (5.2): the integral as an incomplete gamma function, see
 //!   [`BodnerPartom::first_moment_of_rate`]; no sharp yield, but the flow below the
 //!   yield point (5.3) is exponentially small, so blocking emerges from the law.
+//!
+//! A **pre-yield leak** may run in parallel with any law: Q_leak = G_leak Δp. With
+//! G_leak = λ b h³/(12 μ L) it is the pre-yield branch of a bi-viscous fluid whose
+//! pre-yield viscosity is μ/λ (Stanway's bi-viscous model, the slit flow below yield),
+//! the same law as diagnose's leaky Bingham line (`diagnose::bingham::phi_leaky`,
+//! v_ε = λ F_y/c): the flow no longer blocks, it creeps at G_leak Δp.
 
 use crate::fluid::{signum0, Bingham, BodnerPartom, HerschelBulkley};
 
@@ -46,6 +52,9 @@ pub struct SlitFlow {
     pub gap: SlitGap,
     /// Law with its present parameters.
     pub law: GapLaw,
+    /// Conductance of the pre-yield leak in parallel with the law, G_leak \[m³/(Pa·s)\]
+    /// (0: none, the law alone).
+    pub leak_m3_per_pa_s: f64,
 }
 
 impl SlitFlow {
@@ -66,8 +75,15 @@ impl SlitFlow {
     }
 
     /// Flow rate Q from chamber 1 to chamber 2 \[m³/s\] under Δp = p1 − p2 \[Pa\], and
-    /// dQ/dΔp (≥ 0). Q is odd in Δp and C¹ (dQ/dΔp → 0 at the yield pressure).
+    /// dQ/dΔp (≥ 0): the law's flow plus the pre-yield leak G_leak Δp. Q is odd in Δp;
+    /// the law's part is C¹ (its dQ/dΔp → 0 at the yield pressure).
     pub fn flow(&self, dp: f64) -> (f64, f64) {
+        let (q, dq) = self.law_flow(dp);
+        (q + self.leak_m3_per_pa_s * dp, dq + self.leak_m3_per_pa_s)
+    }
+
+    /// The law's flow alone (no leak) and its dQ/dΔp.
+    fn law_flow(&self, dp: f64) -> (f64, f64) {
         let SlitGap {
             width_m: b,
             height_m: h,
@@ -117,8 +133,13 @@ impl SlitFlow {
             return 0.0;
         }
         let target = q.abs();
+        let dpy = self.yield_pressure();
+        // Below the yield pressure only the leak flows: Δp = Q / G_leak.
+        if self.leak_m3_per_pa_s > 0.0 && target <= self.leak_m3_per_pa_s * dpy {
+            return q / self.leak_m3_per_pa_s;
+        }
         // Bracket: Q(lo) < target ≤ Q(hi).
-        let mut lo = self.yield_pressure();
+        let mut lo = dpy;
         let mut hi = lo.max(1.0e3) * 2.0;
         while self.flow(hi).0 < target {
             lo = hi;
@@ -190,6 +211,7 @@ mod tests {
                 yield_stress_pa: 2.0e4,
                 viscosity_pa_s: 0.4,
             }),
+            leak_m3_per_pa_s: 0.0,
         };
         let hb = SlitFlow {
             gap: gap(),
@@ -198,6 +220,7 @@ mod tests {
                 consistency_pa_sm: 0.4,
                 flow_index: 1.0,
             }),
+            leak_m3_per_pa_s: 0.0,
         };
         for dp in [-5e6, -1.2e6, 0.0, 5e5, 1.01e6, 3e6] {
             let (qb, db) = b.flow(dp);
@@ -221,6 +244,7 @@ mod tests {
                 yield_stress_pa: 0.0,
                 viscosity_pa_s: 0.1,
             }),
+            leak_m3_per_pa_s: 0.0,
         };
         let g = gap();
         let dp = 1.0e5;
@@ -242,9 +266,13 @@ mod tests {
             }),
             GapLaw::BodnerPartom(BodnerPartom::from_paper(1.0, 25.0, 0.8e-3)),
         ];
-        for law in laws {
-            let f = SlitFlow { gap: gap(), law };
-            for dp in [1.5e6, 4.0e6, 1.2e7, 2.0e7] {
+        for (law, leak) in laws.iter().flat_map(|l| [(*l, 0.0), (*l, 2.4e-11)]) {
+            let f = SlitFlow {
+                gap: gap(),
+                law,
+                leak_m3_per_pa_s: leak,
+            };
+            for dp in [3.0e5, 1.5e6, 4.0e6, 1.2e7, 2.0e7] {
                 let (_, d) = f.flow(dp);
                 let h = dp * 1e-6;
                 let fd = (f.flow(dp + h).0 - f.flow(dp - h).0) / (2.0 * h);
@@ -270,8 +298,14 @@ mod tests {
             }),
             GapLaw::BodnerPartom(BodnerPartom::from_paper(1.0, 25.0, 0.8e-3)),
         ];
-        for law in laws {
-            let f = SlitFlow { gap: gap(), law };
+        // Without and with a pre-yield leak (λ = 0.05 of the Bingham conductance: the
+        // smaller flows here run below the yield pressure through the leak alone).
+        for (law, leak) in laws.iter().flat_map(|l| [(*l, 0.0), (*l, 2.4e-11)]) {
+            let f = SlitFlow {
+                gap: gap(),
+                law,
+                leak_m3_per_pa_s: leak,
+            };
             for q in [-2e-4, -1e-6, 1e-8, 3e-5, 2e-4] {
                 let dp = f.pressure_drop(q);
                 assert!((f.flow(dp).0 / q - 1.0).abs() < 1e-9, "{law:?} {q}");
@@ -285,6 +319,7 @@ mod tests {
         let f = SlitFlow {
             gap: gap(),
             law: GapLaw::BodnerPartom(bp),
+            leak_m3_per_pa_s: 0.0,
         };
         // A wall stress at half the yield point for 1 1/s lets through a negligible flow.
         let tau = 0.5 * bp.yield_point(1.0);

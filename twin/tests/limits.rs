@@ -217,6 +217,11 @@ fn energy_dissipated_per_cycle_equals_the_loop_area() {
         3.33,
         0.01,
     );
+    // A pre-yield leak dissipates in the blocked range too: Q_leak Δp counts.
+    let mut leaky = TwoChamberParams::default();
+    leaky.fluid.pre_yield_leak = 0.05;
+    assert_energy_balance(&mut TwoChamber::new(leaky.clone(), no_heat), 3.33, 0.01);
+    assert_energy_balance(&mut TwoChamber::new(leaky, EffectSet::NONE), 3.33, 0.01);
     let mut bp = TwoChamberParams::default();
     bp.fluid.law = FluidLaw::BodnerPartom;
     bp.gap_active_length_m = 0.004;

@@ -69,6 +69,11 @@ pub struct FluidParams {
     pub viscosity_temp_coeff_per_k: f64,
     /// Reference temperature of the polynomials \[°C\].
     pub reference_temperature_c: f64,
+    /// Pre-yield leak λ \[-\]: a linear flow G_leak Δp in parallel with the law,
+    /// G_leak = λ b h³/(12 μ(I, T) L), λ the bi-viscous fluid's inverse viscosity ratio
+    /// μ/μ_pre ([`crate::gap`]). 0: the law alone (the flow blocks below yield). For
+    /// Herschel–Bulkley the consistency k(I, T) stands for μ.
+    pub pre_yield_leak: f64,
 }
 
 impl Default for FluidParams {
@@ -83,18 +88,25 @@ impl Default for FluidParams {
             yield_stress_temp_coeff_per_k: 0.005,
             viscosity_temp_coeff_per_k: 0.02,
             reference_temperature_c: 25.0,
+            pre_yield_leak: 0.0,
         }
     }
 }
 
 impl FluidParams {
+    /// μ(I, T) \[Pa·s\] (Herschel–Bulkley: the consistency k(I, T)).
+    fn viscosity_at(&self, i: f64, t: f64) -> f64 {
+        let dt = t - self.reference_temperature_c;
+        quadratic_in_current(&self.viscosity_pa_s, i).max(1e-6)
+            * (-self.viscosity_temp_coeff_per_k * dt).exp()
+    }
+
     /// The gap law at current `i` \[A\] and temperature `t` \[°C\] for a gap of height `h`.
     pub fn law_at(&self, i: f64, t: f64, h: f64) -> GapLaw {
         let dt = t - self.reference_temperature_c;
         let tau_y = quadratic_in_current(&self.yield_stress_pa, i)
             * (1.0 - self.yield_stress_temp_coeff_per_k * dt).max(0.0);
-        let mu = quadratic_in_current(&self.viscosity_pa_s, i).max(1e-6)
-            * (-self.viscosity_temp_coeff_per_k * dt).exp();
+        let mu = self.viscosity_at(i, t);
         match self.law {
             FluidLaw::Bingham => GapLaw::Bingham(Bingham {
                 yield_stress_pa: tau_y,
@@ -222,9 +234,17 @@ impl TwoChamberParams {
     }
     /// Gap flow law at current `i` and temperature `t`.
     pub fn flow_at(&self, i: f64, t: f64) -> SlitFlow {
+        let gap = self.slit();
+        let leak = if self.fluid.pre_yield_leak > 0.0 {
+            self.fluid.pre_yield_leak * gap.width_m * gap.height_m.powi(3)
+                / (12.0 * self.fluid.viscosity_at(i, t) * gap.length_m)
+        } else {
+            0.0
+        };
         SlitFlow {
-            gap: self.slit(),
+            gap,
             law: self.fluid.law_at(i, t, self.gap_height_m),
+            leak_m3_per_pa_s: leak,
         }
     }
 }
