@@ -462,8 +462,10 @@ impl Ros2Transport {
         self.publishers.clear();
         self.subscriptions.clear();
         if let Some(node) = self.node.take() {
-            node.stop_spinner();
-            drop(node); // removes the node from ros_discovery_info (broadcast)
+            // Dropping the node signals its spinner to stop (once; an explicit
+            // `stop_spinner()` before it made the drop's second signal fail and log an
+            // error at every exit) and removes the node from ros_discovery_info.
+            drop(node);
         }
         if let Some(t) = self.spinner.take() {
             let _ = t.join();
