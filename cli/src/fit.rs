@@ -321,8 +321,7 @@ pub fn calibrate_with_leak_trial(
     leaky_config.params.two_chamber.fluid.pre_yield_leak = LEAK_START;
     let leaky = calibrate(&leaky_config, records, blocks, &hold);
     match (plain, leaky) {
-        (Ok(p), Ok(l)) if l.holdout_rmse_n < (1.0 - LEAK_MIN_GAIN) * p.holdout_rmse_n => {
-            let mut l = l;
+        (Ok(p), Ok(mut l)) if l.holdout_rmse_n < (1.0 - LEAK_MIN_GAIN) * p.holdout_rmse_n => {
             l.notes.push(format!(
                 "{LEAK_KEY}: a pre-yield leak was tried and kept: held-out RMS {:.4} N without,                  {:.4} N with (at least {:.0} % lower needed)",
                 p.holdout_rmse_n,

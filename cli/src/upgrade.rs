@@ -222,10 +222,12 @@ pub fn write_upgraded(
         };
         match calibrate_upgrade(&config, &up_config, records) {
             Ok((c, held)) => {
-                profile.push(json!({
-                    "seal_friction_velocity_m_s": share * peak_speed,
-                    "holdout_rmse_n": c.holdout_rmse_n,
-                }));
+                if adds_friction {
+                    profile.push(json!({
+                        "seal_friction_velocity_m_s": share * peak_speed,
+                        "holdout_rmse_n": c.holdout_rmse_n,
+                    }));
+                }
                 if best
                     .as_ref()
                     .is_none_or(|(b, _)| c.holdout_rmse_n < b.holdout_rmse_n)
@@ -238,10 +240,8 @@ pub fn write_upgraded(
             }
         }
     }
-    let (c, held) = match (best, first_error) {
-        (Some(b), _) => b,
-        (None, Some(e)) => return Err(e),
-        (None, None) => bail!("--write-params: no calibration was run"),
+    let Some((c, held)) = best else {
+        return Err(first_error.expect("at least one width tried, and every one failed"));
     };
     // The full fit ran through the same pipeline on every sample: its RMS is the replay's.
     let up_rmse = c.full.rmse_n;

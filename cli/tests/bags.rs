@@ -105,7 +105,7 @@ fn read_with_python(bag: &Path, dir: &Path) -> (Vec<Value>, Vec<Value>) {
         ],
         Duration::from_secs(60),
     );
-    let v: Value = serde_json::from_str(&std::fs::read_to_string(out).unwrap()).unwrap();
+    let v: Value = mrtwin_tests::read_json(&out);
     let take = |k: &str| v[k].as_array().unwrap().clone();
     (take("rosbags"), take("mcap"))
 }

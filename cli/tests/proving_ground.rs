@@ -6,7 +6,7 @@
 
 use std::time::Duration;
 
-use mrtwin_tests::{repo_root, run, run_python, succeeded, TempDir};
+use mrtwin_tests::{read_json, repo_root, run, run_python, succeeded, TempDir};
 
 /// Runs a Python script file with arguments (through `python -c`, so the interop venv's
 /// time limit and output draining apply).
@@ -125,10 +125,7 @@ fn a_bi_viscous_fluid_below_yield_over_half_the_stroke_is_fitted_to_the_noise() 
         ),
         "mrtwin diagnose",
     );
-    let read = |p: &std::path::Path| -> serde_json::Value {
-        serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
-    };
-    let (m, d) = (read(&meta), read(&json));
+    let (m, d) = (read_json(&meta), read_json(&json));
     assert_eq!(
         m["hidden"].as_array().unwrap().len(),
         0,

@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
-use mrtwin_tests::{csv_column, rms_finite, succeeded, TempDir};
+use mrtwin_tests::{csv_column, fitted_parameter, read_json, rms_finite, succeeded, TempDir};
 
 fn mrtwin<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> Output {
     mrtwin_tests::run(env!("CARGO_BIN_EXE_mrtwin"), args)
@@ -120,13 +120,8 @@ fn a_twin_fitted_on_the_first_part_replays_the_rest_with_a_physical_yield_stress
             ]),
             "fit",
         );
-        let report: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-        let lag = report["parameters"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|q| q["key"] == "conditioning.driver_lag_s")
+        let report = read_json(&json);
+        let lag = fitted_parameter(&report, "conditioning.driver_lag_s")
             .unwrap_or_else(|| panic!("the driver lag is not fitted: {report}"))
             .clone();
         let written = std::fs::read_to_string(&twin).unwrap();

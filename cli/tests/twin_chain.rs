@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
-use mrtwin_tests::{csv_column, rms_finite, succeeded, TempDir};
+use mrtwin_tests::{csv_column, fitted_parameter, read_json, rms_finite, succeeded, TempDir};
 use node::config::{TwinNodeParams, TWIN_NODE};
 
 fn mrtwin<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> Output {
@@ -54,8 +54,7 @@ fn chain(dir: &Path, rec: &Path) -> Chain {
         ]),
         "diagnose --params",
     );
-    let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&js).unwrap()).unwrap();
+    let json = read_json(&js);
     let twin_rms = replay_rms(dir, rec, &twin, "twin");
     let upgraded_rms = replay_rms(dir, rec, &upgraded, "upgraded");
     Chain {
@@ -291,13 +290,8 @@ fn a_pre_yield_leak_in_the_record_is_tried_kept_and_recovered_by_the_fit() {
         mrtwin(&["fit", &p(&rec), "--out", &p(&twin), "--json", &p(&js)]),
         "fit",
     );
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&js).unwrap()).unwrap();
-    let leak = report["parameters"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|q| q["key"] == "two_chamber.fluid.pre_yield_leak")
+    let report = read_json(&js);
+    let leak = fitted_parameter(&report, "two_chamber.fluid.pre_yield_leak")
         .unwrap_or_else(|| panic!("no leak fitted: {:#}", report["identifiable"]));
     let (value, se) = (
         leak["value"].as_f64().unwrap(),

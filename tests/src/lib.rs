@@ -44,6 +44,25 @@ pub fn csv_column(path: &Path, name: &str) -> Vec<f64> {
         .collect()
 }
 
+/// A JSON file (a `--json` report), parsed; a panic naming the file otherwise.
+pub fn read_json(path: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(path)
+        .unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// The entry of parameter `key` in the `parameters` of a `mrtwin fit --json` report
+/// (`key`, `start`, `value`, `std_error`, `ci95`), if the fit moved it.
+pub fn fitted_parameter<'a>(
+    report: &'a serde_json::Value,
+    key: &str,
+) -> Option<&'a serde_json::Value> {
+    report["parameters"]
+        .as_array()?
+        .iter()
+        .find(|q| q["key"] == key)
+}
+
 /// RMS of the finite values of `x`.
 pub fn rms_finite(x: &[f64]) -> f64 {
     let v: Vec<f64> = x.iter().copied().filter(|e| e.is_finite()).collect();

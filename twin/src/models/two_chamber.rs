@@ -72,7 +72,8 @@ pub struct FluidParams {
     /// Pre-yield leak λ \[-\]: a linear flow G_leak Δp in parallel with the law,
     /// G_leak = λ b h³/(12 μ(I, T) L), λ the bi-viscous fluid's inverse viscosity ratio
     /// μ/μ_pre ([`crate::gap`]). 0: the law alone (the flow blocks below yield). For
-    /// Herschel–Bulkley the consistency k(I, T) stands for μ.
+    /// Herschel–Bulkley the consistency k(I, T) stands for μ; for Bodner–Partom, whose
+    /// law does not use it, μ is the `viscosity_pa_s` polynomial.
     pub pre_yield_leak: f64,
 }
 
@@ -94,20 +95,16 @@ impl Default for FluidParams {
 }
 
 impl FluidParams {
-    /// μ(I, T) \[Pa·s\] (Herschel–Bulkley: the consistency k(I, T)).
-    fn viscosity_at(&self, i: f64, t: f64) -> f64 {
-        let dt = t - self.reference_temperature_c;
-        quadratic_in_current(&self.viscosity_pa_s, i).max(1e-6)
-            * (-self.viscosity_temp_coeff_per_k * dt).exp()
-    }
-
-    /// The gap law at current `i` \[A\] and temperature `t` \[°C\] for a gap of height `h`.
-    pub fn law_at(&self, i: f64, t: f64, h: f64) -> GapLaw {
+    /// The flow through slit `gap` at current `i` \[A\] and temperature `t` \[°C\]: the
+    /// law with its parameters there, and the pre-yield leak λ b h³/(12 μ L) beside it.
+    pub fn flow_in(&self, gap: SlitGap, i: f64, t: f64) -> SlitFlow {
         let dt = t - self.reference_temperature_c;
         let tau_y = quadratic_in_current(&self.yield_stress_pa, i)
             * (1.0 - self.yield_stress_temp_coeff_per_k * dt).max(0.0);
-        let mu = self.viscosity_at(i, t);
-        match self.law {
+        // μ(I, T) (Herschel–Bulkley: the consistency k(I, T)).
+        let mu = quadratic_in_current(&self.viscosity_pa_s, i).max(1e-6)
+            * (-self.viscosity_temp_coeff_per_k * dt).exp();
+        let law = match self.law {
             FluidLaw::Bingham => GapLaw::Bingham(Bingham {
                 yield_stress_pa: tau_y,
                 viscosity_pa_s: mu,
@@ -117,7 +114,19 @@ impl FluidParams {
                 consistency_pa_sm: mu,
                 flow_index: self.flow_index,
             }),
-            FluidLaw::BodnerPartom => GapLaw::BodnerPartom(BodnerPartom::from_paper(i.abs(), t, h)),
+            FluidLaw::BodnerPartom => {
+                GapLaw::BodnerPartom(BodnerPartom::from_paper(i.abs(), t, gap.height_m))
+            }
+        };
+        let leak_m3_per_pa_s = if self.pre_yield_leak > 0.0 {
+            self.pre_yield_leak * gap.width_m * gap.height_m.powi(3) / (12.0 * mu * gap.length_m)
+        } else {
+            0.0
+        };
+        SlitFlow {
+            gap,
+            law,
+            leak_m3_per_pa_s,
         }
     }
 }
@@ -234,18 +243,7 @@ impl TwoChamberParams {
     }
     /// Gap flow law at current `i` and temperature `t`.
     pub fn flow_at(&self, i: f64, t: f64) -> SlitFlow {
-        let gap = self.slit();
-        let leak = if self.fluid.pre_yield_leak > 0.0 {
-            self.fluid.pre_yield_leak * gap.width_m * gap.height_m.powi(3)
-                / (12.0 * self.fluid.viscosity_at(i, t) * gap.length_m)
-        } else {
-            0.0
-        };
-        SlitFlow {
-            gap,
-            law: self.fluid.law_at(i, t, self.gap_height_m),
-            leak_m3_per_pa_s: leak,
-        }
+        self.fluid.flow_in(self.slit(), i, t)
     }
 }
 
