@@ -13,6 +13,9 @@ echo "== python interop peers (venv)"
 bash scripts/setup-venv.sh
 export MRTWIN_PYTHON="$PWD/${MRTWIN_VENV:-.venv}/bin/python"
 
+echo "== headless chromium (Debian package) for the HTML report's screenshot"
+bash scripts/setup-chromium.sh
+
 echo "== cargo fmt --check"
 cargo fmt --all -- --check
 

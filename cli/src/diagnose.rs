@@ -12,7 +12,8 @@ use anyhow::{bail, Context, Result};
 use bridge::csv::Recording;
 use clap::Args;
 
-use crate::plot::{write_svg, Figure, Panel, Series, PALETTE};
+use crate::html::{report_page, InlineFigure};
+use crate::plot::{svg_string, write_svg, Figure, Panel, Series, PALETTE};
 
 /// The baselines `--baseline` accepts.
 pub const BASELINES: [&str; 1] = ["bingham-flow"];
@@ -36,6 +37,10 @@ pub struct DiagnoseArgs {
     /// Write the Markdown report here (it is printed to stdout otherwise).
     #[arg(long, value_name = "OUT.md")]
     pub report: Option<PathBuf>,
+    /// Write the report and its plots as one self-contained HTML page here (plots inline
+    /// as SVG, nothing referenced from outside the file).
+    #[arg(long, value_name = "OUT.html")]
+    pub html: Option<PathBuf>,
     /// How candidate effects are accepted: `calibrated` (against a bootstrap null of the
     /// fitted model at a 1 % family-wise false-alarm rate), `rules` (the four hand-set
     /// rules of the first version) or `sindy` (SINDy-style sparse regression, for
@@ -179,7 +184,12 @@ pub fn run(args: &DiagnoseArgs) -> Result<()> {
     if let Some(dir) = &args.plots {
         fs::create_dir_all(dir)
             .with_context(|| format!("cannot create plot directory {}", dir.display()))?;
-        plots(&dg, dir)?;
+        for f in figures(&dg) {
+            write_svg(&dir.join(format!("{}.svg", f.stem)), &f.figure)?;
+        }
+    }
+    if let Some(path) = &args.html {
+        write_html(path, &name, &md, &dg)?;
     }
     match &args.report {
         Some(path) => {
@@ -402,16 +412,30 @@ fn loop_figure(
     }
 }
 
-fn plots(dg: &Diagnosis, dir: &Path) -> Result<()> {
+/// A plot of the diagnosis: its file stem (`--plots`), caption (`--html`) and figure.
+struct NamedFigure {
+    stem: &'static str,
+    caption: &'static str,
+    figure: Figure,
+}
+
+/// The plots of a diagnosis: the F–v and F–x loops, the residual by stroke phase, and the
+/// residual over time when a time-dependent effect is found or undecided.
+fn figures(dg: &Diagnosis) -> Vec<NamedFigure> {
     let d = &dg.data;
-    write_svg(
-        &dir.join("loops_force_velocity.svg"),
-        &loop_figure(dg, |j| d.v[j], |j| d.a[j] >= 0.0, "velocity (m/s)"),
-    )?;
-    write_svg(
-        &dir.join("loops_force_displacement.svg"),
-        &loop_figure(dg, |j| 1e3 * d.x[j], |j| d.v[j] >= 0.0, "displacement (mm)"),
-    )?;
+    let mut out = vec![
+        NamedFigure {
+            stem: "loops_force_velocity",
+            caption: "Force against velocity on held-out strokes: measured, baseline and final \
+                      model",
+            figure: loop_figure(dg, |j| d.v[j], |j| d.a[j] >= 0.0, "velocity (m/s)"),
+        },
+        NamedFigure {
+            stem: "loops_force_displacement",
+            caption: "Force against displacement on the same strokes",
+            figure: loop_figure(dg, |j| 1e3 * d.x[j], |j| d.v[j] >= 0.0, "displacement (mm)"),
+        },
+    ];
     // Residual by stroke phase: 1 near reversal, 2 accelerating, 3 decelerating,
     // 4 compression, 5 rebound.
     let rp = &dg.report.residual_by_phase;
@@ -421,9 +445,10 @@ fn plots(dg: &Diagnosis, dir: &Path) -> Result<()> {
         points: (0..rp.len()).map(|k| ((k + 1) as f64, f(k))).collect(),
         dashed: false,
     };
-    write_svg(
-        &dir.join("residual_by_phase.svg"),
-        &Figure {
+    out.push(NamedFigure {
+        stem: "residual_by_phase",
+        caption: "Held-out RMS residual by stroke phase, baseline and final model",
+        figure: Figure {
             x_label: "1 near reversal, 2 accelerating, 3 decelerating, 4 compression, 5 rebound"
                 .into(),
             y_label: "RMS residual (N)".into(),
@@ -436,7 +461,7 @@ fn plots(dg: &Diagnosis, dir: &Path) -> Result<()> {
                 legend: None,
             }],
         },
-    )?;
+    });
     let time_effects = ["thermal_softening", "field_lag"];
     let involved = dg
         .report
@@ -451,9 +476,31 @@ fn plots(dg: &Diagnosis, dir: &Path) -> Result<()> {
         )
         .any(|e| time_effects.contains(&e));
     if involved {
-        write_svg(&dir.join("residual_over_time.svg"), &time_figure(dg))?;
+        out.push(NamedFigure {
+            stem: "residual_over_time",
+            caption: "Residual over time (1 s RMS windows) and after current steps",
+            figure: time_figure(dg),
+        });
     }
-    Ok(())
+    out
+}
+
+/// Write the report `md` of `dg` and its plots as one HTML page at `path`, whole or not
+/// at all (written beside it, then renamed).
+fn write_html(path: &Path, name: &str, md: &str, dg: &Diagnosis) -> Result<()> {
+    let inline = figures(dg)
+        .into_iter()
+        .map(|f| {
+            Ok(InlineFigure {
+                caption: f.caption.into(),
+                svg: svg_string(&f.figure).with_context(|| format!("cannot draw {}", f.stem))?,
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let page = report_page(&format!("mrtwin diagnose: {name}"), md, &inline);
+    let tmp = path.with_extension("html.partial");
+    fs::write(&tmp, page).with_context(|| format!("cannot write {}", tmp.display()))?;
+    fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))
 }
 
 /// Residual over time (1 s RMS windows) and the mean signed residual after current steps.

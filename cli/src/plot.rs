@@ -58,18 +58,26 @@ const HEIGHT: u32 = 440;
 
 /// Write `figure` as an SVG file at `path`.
 pub fn write_svg(path: &Path, figure: &Figure) -> Result<()> {
+    let svg = svg_string(figure).with_context(|| format!("cannot draw plot {}", path.display()))?;
+    std::fs::write(path, svg).with_context(|| format!("cannot write plot {}", path.display()))
+}
+
+/// `figure` as the text of an SVG document (an `<svg>` element, which HTML also takes
+/// inline).
+pub fn svg_string(figure: &Figure) -> Result<String> {
     let n = figure.panels.len().max(1);
     let width = PANEL_WIDTH * n as u32;
-    let root = SVGBackend::new(path, (width, HEIGHT)).into_drawing_area();
-    let draw = || -> Result<()> {
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (width, HEIGHT)).into_drawing_area();
         root.fill(&WHITE).map_err(plot_error)?;
         let areas = root.split_evenly((1, n));
         for (panel, area) in figure.panels.iter().zip(&areas) {
             draw_panel(area, panel, figure)?;
         }
-        root.present().map_err(plot_error)
-    };
-    draw().with_context(|| format!("cannot write plot {}", path.display()))
+        root.present().map_err(plot_error)?;
+    }
+    Ok(svg)
 }
 
 fn plot_error<E: std::fmt::Display>(e: E) -> anyhow::Error {

@@ -61,6 +61,7 @@ fn finds_field_lag_with_json_report_and_plots() {
     let csv = dir.path("lag.csv");
     write_scenario(&Scenario::hidden(Effect::FieldLag), &csv);
     let (out_json, out_md, plots) = (dir.path("d.json"), dir.path("d.md"), dir.path("plots"));
+    let out_html = dir.path("d.html");
     let o = mrtwin(&[
         "diagnose".as_ref(),
         csv.as_os_str(),
@@ -70,6 +71,8 @@ fn finds_field_lag_with_json_report_and_plots() {
         out_md.as_os_str(),
         "--plots".as_ref(),
         plots.as_os_str(),
+        "--html".as_ref(),
+        out_html.as_os_str(),
     ]);
     assert_eq!(o.status.code(), Some(0), "stderr: {}", stderr(&o));
     let j = json(&out_json);
@@ -121,6 +124,100 @@ fn finds_field_lag_with_json_report_and_plots() {
             "{svg}"
         );
     }
+    check_html_report(&dir, &out_html, &md);
+}
+
+/// The HTML page of a diagnosis with a finding: one self-contained file holding the
+/// report and the four plots inline, which headless Chromium renders with the plots'
+/// line colours on screen.
+fn check_html_report(dir: &TempDir, html: &Path, md: &str) {
+    let page = fs::read_to_string(html).expect("HTML written");
+    assert!(page.starts_with("<!DOCTYPE html>"));
+    assert!(!html.with_extension("html.partial").exists());
+    // The report's own text, rendered: every Markdown heading is an HTML heading.
+    let headings: Vec<&str> = md.lines().filter_map(|l| l.strip_prefix("## ")).collect();
+    assert!(headings.len() >= 3, "{md}");
+    for h in &headings {
+        assert!(
+            page.contains(&format!("<h2>{h}</h2>")),
+            "heading {h} missing"
+        );
+    }
+    assert!(page.contains("<strong>field_lag</strong>"));
+    assert!(page.contains("<table>"));
+    // Self-contained: nothing fetched from elsewhere.
+    for external in [
+        "<script", "<link", "<img", "<iframe", "src=", "url(", "@import",
+    ] {
+        assert!(!page.contains(external), "the page references {external}");
+    }
+    assert!(!page.contains("href=\"http"));
+    // The four plots inline, each with its curves and legend.
+    assert_eq!(page.matches("<svg").count(), 4);
+    assert_eq!(page.matches("<figcaption>").count(), 4);
+    for svg in page.split("<svg").skip(1) {
+        let svg = &svg[..svg.find("</svg>").expect("closed svg")];
+        assert!(svg.contains("final model"), "a plot without its legend");
+        assert!(svg.matches("<polyline").count() + svg.matches("<path").count() >= 2);
+    }
+    // Rendered by a real browser: not blank, and the plots' line colours are on screen.
+    let png = dir.path("page.png");
+    let (ok, _, err) = mrtwin_tests::ChildGuard::spawn(
+        std::process::Command::new(chromium())
+            .args([
+                "--headless",
+                "--no-sandbox",
+                "--disable-gpu",
+                "--hide-scrollbars",
+                "--window-size=1000,16000",
+            ])
+            .arg(format!(
+                "--user-data-dir={}",
+                dir.path("chromium-profile").display()
+            ))
+            .arg(format!("--screenshot={}", png.display()))
+            .arg(format!("file://{}", html.display())),
+    )
+    .wait(std::time::Duration::from_secs(120));
+    assert!(ok && png.exists(), "chromium failed: {err}");
+    let script = mrtwin_tests::repo_root().join("cli/tests/screenshot_check.py");
+    let out = std::process::Command::new(mrtwin_tests::python())
+        .arg(&script)
+        .arg(&png)
+        .output()
+        .expect("run the screenshot check");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let m: serde_json::Value = serde_json::from_slice(&out.stdout).expect("check's JSON");
+    let nonwhite = m["nonwhite_fraction"].as_f64().unwrap();
+    assert!(nonwhite > 0.01, "the page renders blank: {m}");
+    assert!(m["colours"].as_u64().unwrap() > 100, "{m}");
+    // Baseline (orange), final model (green) and measured (blue) curves.
+    for (k, name) in [(0, "blue"), (1, "orange"), (2, "green")] {
+        assert!(
+            m["palette_pixels"][k].as_u64().unwrap() > 200,
+            "no {name} curve on screen: {m}"
+        );
+    }
+}
+
+/// Headless Chromium: `chromium` or `chromium-browser` on PATH (scripts/setup-chromium.sh
+/// installs the Debian package; scripts/test-all.sh runs it).
+fn chromium() -> &'static str {
+    ["chromium", "chromium-browser"]
+        .into_iter()
+        .find(|b| {
+            std::process::Command::new(b)
+                .arg("--version")
+                .output()
+                .is_ok_and(|o| o.status.success())
+        })
+        .expect(
+            "no chromium on PATH: run `bash scripts/setup-chromium.sh` (scripts/test-all.sh does)",
+        )
 }
 
 #[test]
