@@ -13,6 +13,7 @@ use bridge::csv::Recording;
 use clap::Args;
 
 use crate::html::{report_page, InlineFigure};
+use crate::output::write_whole;
 use crate::plot::{svg_string, write_svg, Figure, Panel, Series, PALETTE};
 
 /// The baselines `--baseline` accepts.
@@ -486,7 +487,7 @@ fn figures(dg: &Diagnosis) -> Vec<NamedFigure> {
 }
 
 /// Write the report `md` of `dg` and its plots as one HTML page at `path`, whole or not
-/// at all (written beside it, then renamed).
+/// at all ([`write_whole`]).
 fn write_html(path: &Path, name: &str, md: &str, dg: &Diagnosis) -> Result<()> {
     let inline = figures(dg)
         .into_iter()
@@ -498,9 +499,7 @@ fn write_html(path: &Path, name: &str, md: &str, dg: &Diagnosis) -> Result<()> {
         })
         .collect::<Result<Vec<_>>>()?;
     let page = report_page(&format!("mrtwin diagnose: {name}"), md, &inline);
-    let tmp = path.with_extension("html.partial");
-    fs::write(&tmp, page).with_context(|| format!("cannot write {}", tmp.display()))?;
-    fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))
+    write_whole(path, page.as_bytes())
 }
 
 /// Residual over time (1 s RMS windows) and the mean signed residual after current steps.

@@ -116,10 +116,7 @@ pub fn write_twin_file(out: &Path, header: &str, section: &TwinSection<'_>) -> R
     };
     let text = launch_config::params_yaml(header, &[(TWIN_NODE, section), (STAND_NODE, &stand)])
         .map_err(|e| anyhow::anyhow!("cannot write the parameters as YAML: {e}"))?;
-    let tmp = out.with_extension("yaml.partial");
-    std::fs::write(&tmp, text).with_context(|| format!("write {}", tmp.display()))?;
-    std::fs::rename(&tmp, out).with_context(|| format!("write {}", out.display()))?;
-    Ok(())
+    crate::output::write_whole(out, text.as_bytes())
 }
 
 /// The records as the node sees them, one list per file.

@@ -23,6 +23,7 @@ mod logging;
 mod loops;
 mod nodes;
 mod numbers;
+mod output;
 mod paper;
 mod plot;
 mod record;

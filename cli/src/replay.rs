@@ -195,7 +195,7 @@ impl Sink {
     fn finish(self) -> Result<()> {
         match self {
             Sink::None => {}
-            Sink::Csv(path, buf) => write_atomic(&path, buf.as_bytes())?,
+            Sink::Csv(path, buf) => crate::output::write_whole(&path, buf.as_bytes())?,
             Sink::Bag(w) => {
                 w.finish()?;
             }
@@ -287,12 +287,4 @@ fn csv_row(buf: &mut String, s: &SensorSample, p: &Processed, pipeline: &TwinPip
         temp,
         dropped
     );
-}
-
-/// Write through a temporary file and rename, so a reader never sees half a file.
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let tmp = path.with_extension("csv.tmp");
-    std::fs::write(&tmp, bytes).with_context(|| format!("write {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("write {}", path.display()))?;
-    Ok(())
 }

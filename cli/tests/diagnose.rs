@@ -180,18 +180,15 @@ fn check_html_report(dir: &TempDir, html: &Path, md: &str) {
     )
     .wait(std::time::Duration::from_secs(120));
     assert!(ok && png.exists(), "chromium failed: {err}");
-    let script = mrtwin_tests::repo_root().join("cli/tests/screenshot_check.py");
-    let out = std::process::Command::new(mrtwin_tests::python())
-        .arg(&script)
-        .arg(&png)
-        .output()
-        .expect("run the screenshot check");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let script =
+        fs::read_to_string(mrtwin_tests::repo_root().join("cli/tests/screenshot_check.py"))
+            .expect("the screenshot check");
+    let out = mrtwin_tests::run_python(
+        &script,
+        &[&png.display().to_string()],
+        std::time::Duration::from_secs(60),
     );
-    let m: serde_json::Value = serde_json::from_slice(&out.stdout).expect("check's JSON");
+    let m: serde_json::Value = serde_json::from_str(&out).expect("check's JSON");
     let nonwhite = m["nonwhite_fraction"].as_f64().unwrap();
     assert!(nonwhite > 0.01, "the page renders blank: {m}");
     assert!(m["colours"].as_u64().unwrap() > 100, "{m}");
