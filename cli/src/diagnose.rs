@@ -42,6 +42,11 @@ pub struct DiagnoseArgs {
     /// as SVG, nothing referenced from outside the file).
     #[arg(long, value_name = "OUT.html")]
     pub html: Option<PathBuf>,
+    /// Write the per-sample comparison as CSV here: time, rebuilt velocity and its σ,
+    /// current, measured force, the baseline's and the final model's force, the sample's
+    /// weight and its role (`fit`, `held_out` or `excluded`).
+    #[arg(long, value_name = "OUT.csv")]
+    pub residuals: Option<PathBuf>,
     /// How candidate effects are accepted: `calibrated` (against a bootstrap null of the
     /// fitted model at a 1 % family-wise false-alarm rate), `rules` (the four hand-set
     /// rules of the first version) or `sindy` (SINDy-style sparse regression, for
@@ -192,6 +197,9 @@ pub fn run(args: &DiagnoseArgs) -> Result<()> {
     if let Some(path) = &args.html {
         write_html(path, &name, &md, &dg)?;
     }
+    if let Some(path) = &args.residuals {
+        write_whole(path, residuals_csv(&dg).as_bytes())?;
+    }
     match &args.report {
         Some(path) => {
             fs::write(path, &md).with_context(|| format!("cannot write {}", path.display()))?;
@@ -218,6 +226,38 @@ pub fn run(args: &DiagnoseArgs) -> Result<()> {
         println!("{line}");
     }
     Ok(())
+}
+
+/// The per-sample comparison of `--residuals`.
+fn residuals_csv(dg: &Diagnosis) -> String {
+    use std::fmt::Write;
+    let d = &dg.data;
+    let mut out = String::from(
+        "time_s,velocity_m_s,velocity_sigma_m_s,current_A,force_N,baseline_N,final_N,weight,role\n",
+    );
+    for j in 0..d.len() {
+        let role = if d.excluded[j] {
+            "excluded"
+        } else if d.holdout[j] {
+            "held_out"
+        } else {
+            "fit"
+        };
+        let _ = writeln!(
+            out,
+            "{},{:.9e},{:.4e},{},{},{:.9e},{:.9e},{:.9e},{}",
+            d.t[j],
+            d.v[j],
+            d.v_sigma[j],
+            d.i[j],
+            d.f[j],
+            dg.baseline_force[j],
+            dg.final_force[j],
+            d.weight[j],
+            role
+        );
+    }
+    out
 }
 
 /// Up to three held-out strokes at distinct current levels (lowest, middle, highest), each

@@ -62,6 +62,7 @@ fn finds_field_lag_with_json_report_and_plots() {
     write_scenario(&Scenario::hidden(Effect::FieldLag), &csv);
     let (out_json, out_md, plots) = (dir.path("d.json"), dir.path("d.md"), dir.path("plots"));
     let out_html = dir.path("d.html");
+    let out_res = dir.path("r.csv");
     let o = mrtwin(&[
         "diagnose".as_ref(),
         csv.as_os_str(),
@@ -73,9 +74,12 @@ fn finds_field_lag_with_json_report_and_plots() {
         plots.as_os_str(),
         "--html".as_ref(),
         out_html.as_os_str(),
+        "--residuals".as_ref(),
+        out_res.as_os_str(),
     ]);
     assert_eq!(o.status.code(), Some(0), "stderr: {}", stderr(&o));
     let j = json(&out_json);
+    check_residuals_csv(&out_res, &j);
     assert_eq!(j["samples"], 30_000);
     assert!(j["input"].as_str().unwrap().ends_with("lag.csv"));
     for key in ["train_rmse_N", "holdout_rmse_N"] {
@@ -198,6 +202,36 @@ fn check_html_report(dir: &TempDir, html: &Path, md: &str) {
             m["palette_pixels"][k].as_u64().unwrap() > 200,
             "no {name} curve on screen: {m}"
         );
+    }
+}
+
+/// The `--residuals` CSV: one row per sample, and the report's held-out RMS (weighted, of
+/// the baseline and of the final model) recomputed from its rows.
+fn check_residuals_csv(path: &std::path::Path, j: &serde_json::Value) {
+    let text = fs::read_to_string(path).expect("the residuals CSV");
+    let mut lines = text.lines();
+    assert_eq!(
+        lines.next(),
+        Some("time_s,velocity_m_s,velocity_sigma_m_s,current_A,force_N,baseline_N,final_N,weight,role")
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len() as u64, j["samples"].as_u64().unwrap());
+    let num = |r: &[&str], k: usize| r[k].parse::<f64>().expect("a number");
+    for (col, key) in [(5, "baseline"), (6, "final")] {
+        let (mut s, mut w) = (0.0, 0.0);
+        for r in rows.iter().filter(|r| r[8] == "held_out") {
+            s += num(r, 7) * (num(r, 4) - num(r, col)).powi(2);
+            w += num(r, 7);
+        }
+        let rms = (s / w).sqrt();
+        let want = j[key]["holdout_rmse_N"].as_f64().unwrap();
+        assert!(
+            (rms / want - 1.0).abs() < 1e-6,
+            "{key}: {rms} from the CSV, {want} in the JSON"
+        );
+    }
+    for role in ["fit", "held_out", "excluded"] {
+        assert!(rows.iter().any(|r| r[8] == role), "no {role} row");
     }
 }
 

@@ -368,7 +368,7 @@ mod tests {
         let truth: Vec<f64> = t.iter().map(|&t| -1.0 + 2.0 * step(t + tg - t0)).collect();
         let aa = AntiAlias::butterworth2(fc_per_fs, dt);
         let worst = |m: usize| {
-            let g = SubGrid::build(&ch, m);
+            let g = SubGrid::build(&ch, m, &[]);
             let y: Vec<f64> = g.v.iter().map(|v| v.signum()).collect();
             let out = aa.resample(&g, &y, 1);
             out.iter()

@@ -215,7 +215,12 @@ pub fn judge_null(t: f64, null: &[f64], dp: usize, alpha: f64) -> Calibrated {
         (1.0, dp as f64, 1.0)
     };
     let p = (1.0 - alpha / share.max(1.0 / b.max(1) as f64)).clamp(0.5, 1.0 - 1e-12);
-    let threshold = kappa * stats::chi2_quantile(p, nu);
+    // Never below the white-noise threshold χ²(Δp): replicates whose noise barely
+    // excites the candidate (a field lag on a record with three current steps: T* ≈ 0)
+    // would otherwise pass a statistic of a few noise units (proving-ground null seed
+    // 131, a lag at T = 3.3 against a bootstrap threshold of 0.05).
+    let threshold =
+        (kappa * stats::chi2_quantile(p, nu)).max(stats::chi2_quantile(1.0 - alpha, dp as f64));
     let exceed = null.iter().filter(|x| **x >= t).count() as f64 / b.max(1) as f64;
     Calibrated {
         statistic: t,
@@ -272,5 +277,9 @@ mod tests {
         let c = judge_null(0.0, &half, 1, 1e-3);
         let want = 3.0 * 9.55; // χ²₁ quantile at 1 − 2e-3
         assert!((c.threshold / want - 1.0).abs() < 0.2, "{c:?}");
+        // A null far below white noise: the threshold stays at χ²₁(1 − α).
+        let tiny: Vec<f64> = null.iter().map(|x| 1e-3 * x).collect();
+        let c = judge_null(3.3, &tiny, 1, 1e-3);
+        assert!((c.threshold - 10.83).abs() < 0.05 && !c.passes(), "{c:?}");
     }
 }

@@ -80,7 +80,8 @@ pub struct Prepared {
     pub weight: Vec<f64>,
     /// Acceleration \[m/s²\], local-cubic derivative of the rebuilt velocity.
     pub a: Vec<f64>,
-    /// Current \[A\].
+    /// Current \[A\]: the recorded channel conditioned ([`crate::current`]): held plateaus
+    /// at their level, steps sharp.
     pub i: Vec<f64>,
     /// Measured force \[N\].
     pub f: Vec<f64>,
@@ -96,6 +97,11 @@ pub struct Prepared {
     pub anti_alias: Option<crate::antialias::AntiAlias>,
     /// The model's inputs on the sub-sample grid it is evaluated on behind the filter.
     pub subgrid: crate::subsample::SubGrid,
+    /// The current channel's plateaus and steps ([`crate::current`]); `i` is its placed
+    /// current.
+    pub current: crate::current::CurrentChannel,
+    /// Per sample j: where in the interval (j − 1, j] the placed current steps.
+    pub current_step_at: Vec<Option<f64>>,
     /// `true` when the knots are the record's own held levels (at most 12 distinct
     /// currents), `false` when the current varies continuously and the knots are a grid.
     pub held_levels: bool,
@@ -136,6 +142,32 @@ pub struct Prepared {
 }
 
 impl Prepared {
+    /// Put the rig's anti-alias filter behind every model force (`None`: no filter): the
+    /// current steps are placed again under it ([`crate::current::CurrentChannel::place`])
+    /// and the sub-sample grid rebuilt.
+    pub fn set_anti_alias(&mut self, aa: Option<crate::antialias::AntiAlias>) {
+        self.anti_alias = aa;
+        let dt = self.measurement.sample_interval_s;
+        // The delay the model's force is advanced by: the filter's, run at the sub-sample
+        // grid's rate (crate::antialias::AntiAlias::resample), close to the analog one.
+        let m = crate::subsample::OVERSAMPLING as f64;
+        let placed = self.current.place(
+            &self.t,
+            &self.h,
+            aa.map(|a| {
+                let fine = crate::antialias::AntiAlias::butterworth2(a.cutoff_per_fs / m, 1.0);
+                (a.cutoff_hz, fine.delay_samples / m * dt)
+            }),
+        );
+        self.i = placed.i;
+        self.current_step_at = placed.step_at;
+        self.subgrid = crate::subsample::SubGrid::build(
+            &self.channels(),
+            crate::subsample::OVERSAMPLING,
+            &self.current_step_at,
+        );
+    }
+
     /// The samples as model inputs.
     pub fn channels(&self) -> crate::subsample::Channels<'_> {
         crate::subsample::Channels {
@@ -633,8 +665,10 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
     let t = s.time_s.clone();
     let x = s.displacement_m.clone();
     let f = s.force_n.clone();
-    let i = s.current_a.clone();
     let h = steps(&t);
+    let current = crate::current::CurrentChannel::condition(&t, &h, &s.current_a);
+    let placed = current.place(&t, &h, None);
+    let i = placed.i;
     let m = crate::measure::measure(&t, &x, &s.velocity_m_s, &f, &h, s.velocity_derived);
     let v = m.v;
     let a = m.a;
@@ -814,6 +848,8 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
         knots,
         anti_alias: None,
         subgrid: crate::subsample::SubGrid::default(),
+        current,
+        current_step_at: placed.step_at,
         cycle,
         cycles,
         segment,
@@ -831,8 +867,11 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
         measurement: m.summary,
         split_method,
     };
-    prepared.subgrid =
-        crate::subsample::SubGrid::build(&prepared.channels(), crate::subsample::OVERSAMPLING);
+    prepared.subgrid = crate::subsample::SubGrid::build(
+        &prepared.channels(),
+        crate::subsample::OVERSAMPLING,
+        &prepared.current_step_at,
+    );
     Ok(prepared)
 }
 

@@ -12,6 +12,7 @@
 pub mod antialias;
 pub mod bingham;
 pub mod calibrate;
+pub mod current;
 pub mod data;
 pub mod measure;
 pub mod model;

@@ -279,6 +279,8 @@ pub struct MeasurementSummary {
     pub edge_samples: usize,
     /// The anti-alias filter fitted with the baseline (`null`: none fits better).
     pub anti_alias: Option<crate::antialias::AntiAlias>,
+    /// The current channel's plateaus and steps ([`crate::current`]).
+    pub current: Option<crate::current::CurrentSummary>,
 }
 
 /// The measurement model applied to one recording.
@@ -497,6 +499,7 @@ pub fn measure(
         excluded_samples,
         edge_samples,
         anti_alias: None,
+        current: None,
     };
     Measured {
         v: v_hat,

@@ -44,6 +44,11 @@ pub struct Layout {
     /// Whether the yield softness ([`Layout::softness_index`]) is fitted; when not, it is
     /// held at its start value (its Jacobian column is zero).
     pub soft: bool,
+    /// The seal friction's step scaled by the local yield force, `F_c (F_y(I)/F̄_y) s`
+    /// (F̄_y the knots' mean): the alternative a current-independent friction must beat
+    /// (a force step near reversal that follows the fluid's yield force at every current
+    /// is the fluid's shape, not a seal). `false`: the friction of the library.
+    pub friction_scaled: bool,
 }
 
 /// One named parameter.
@@ -236,7 +241,7 @@ pub struct Evaluation {
 const FY_MIN: f64 = 1e-3;
 const C_MIN: f64 = 1e-3;
 /// Smallest presliding displacement of the Dahl friction \[m\] (0.1 µm: a step in sgn v).
-const XP_MIN: f64 = 1e-7;
+pub const XP_MIN: f64 = 1e-7;
 
 /// Largest presliding displacement of the Dahl friction \[m\]: a seal's presliding range
 /// is micrometres to a tenth of a millimetre. A force that builds up over a longer travel
@@ -309,6 +314,7 @@ fn evaluate_at(d: &Prepared, inp: &Channels, lay: &Layout, theta: &[f64], jac: b
     let tau = ilag.map(|k| theta[k].max(0.0)).unwrap_or(0.0);
     let comp = icp.map(|k| theta[k].max(0.0)).unwrap_or(0.0);
     let mut i_eff = inp.i[0];
+    let fy_ref = (theta[..nk].iter().map(|x| x.max(FY_MIN)).sum::<f64>() / nk as f64).max(FY_MIN);
     // Dahl friction state s ∈ [−1, 1] and ∂s/∂x_p.
     let (mut dahl_s, mut dahl_ds) = (0.0, 0.0);
     let mut di_dtau = 0.0;
@@ -484,10 +490,30 @@ fn evaluate_at(d: &Prepared, inp: &Channels, lay: &Layout, theta: &[f64], jac: b
                 dahl_s = sg;
                 dahl_ds = 0.0;
             }
-            total += theta[q] * dahl_s;
+            // Scaled by the local yield force for the current-independence check.
+            let ratio = if lay.friction_scaled {
+                fy / fy_ref
+            } else {
+                1.0
+            };
+            total += theta[q] * dahl_s * ratio;
             if jac {
-                jm[row + q] = dahl_s;
-                jm[row + q + 1] = theta[q] * dahl_ds;
+                jm[row + q] = dahl_s * ratio;
+                jm[row + q + 1] = theta[q] * dahl_ds * ratio;
+                if lay.friction_scaled {
+                    if fy > FY_MIN {
+                        for &(a, g) in &gfy {
+                            jm[row + a] += theta[q] * dahl_s / fy_ref * g;
+                        }
+                    }
+                    // F̄_y moves with every knot.
+                    let dref = theta[q] * dahl_s * ratio / (fy_ref * nk as f64);
+                    for (a, th) in theta[..nk].iter().enumerate() {
+                        if *th > FY_MIN {
+                            jm[row + a] -= dref;
+                        }
+                    }
+                }
             }
         }
         if let Some(q) = igas {
@@ -1044,6 +1070,7 @@ fn baseline_start(d: &Prepared) -> (Layout, Vec<f64>) {
             nk,
             effects: Vec::new(),
             soft: false,
+            friction_scaled: false,
         },
         theta,
     )
@@ -1080,6 +1107,7 @@ mod tests {
             nk: d.knots.len(),
             effects: vec![],
             soft: true,
+            friction_scaled: false,
         };
         let th = vec![
             250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 0.0, 0.004, 0.0, 0.0, 0.0, 0.0, 0.0,
@@ -1095,6 +1123,7 @@ mod tests {
             nk: d.knots.len(),
             effects: Effect::ALL.to_vec(),
             soft: true,
+            friction_scaled: false,
         };
         // knots' F_y and c, offset, leak, relative leak, yield softness, knots' c₂
         let mut theta = vec![
@@ -1104,13 +1133,25 @@ mod tests {
         // lag 8 ms, inertia (ALL order)
         theta.extend([5e-8, 800.0, 15.0, 2e-4, 0.05, 0.008, 0.5]);
         assert_eq!(theta.len(), lay.len());
-        let ev = evaluate(&d, &lay, &theta, true);
+        // The library's friction and the one scaled by the yield force.
+        for scaled in [false, true] {
+            let lay = Layout {
+                friction_scaled: scaled,
+                ..lay.clone()
+            };
+            check_jacobian(&d, &lay, &theta);
+        }
+    }
+
+    fn check_jacobian(d: &Prepared, lay: &Layout, theta: &[f64]) {
+        let (d, lay) = (d.clone(), lay.clone());
+        let ev = evaluate(&d, &lay, theta, true);
         let p = lay.len();
         for q in 0..p {
             let h = 1e-6 * theta[q].abs().max(1e-9);
-            let mut tp = theta.clone();
+            let mut tp = theta.to_vec();
             tp[q] += h;
-            let mut tm = theta.clone();
+            let mut tm = theta.to_vec();
             tm[q] -= h;
             let fp = evaluate(&d, &lay, &tp, false).force;
             let fm = evaluate(&d, &lay, &tm, false).force;
@@ -1208,7 +1249,7 @@ mod tests {
             .fold(0.0, f64::max);
         assert!(worst < 1.0, "largest difference {worst} N");
         // A stiff chamber lags: with a large compliance the force after reversal is lower.
-        tc[13] = 2e-7;
+        *tc.last_mut().expect("the compliance") = 2e-7;
         let f2 = evaluate(&d, &lay, &tc, false).force;
         let diff: f64 = f0.iter().zip(&f2).map(|(a, b)| (a - b).powi(2)).sum();
         assert!(diff > 1e3);

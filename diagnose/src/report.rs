@@ -248,6 +248,9 @@ pub struct Report {
     /// Effects accepted in their round and withdrawn at the end (their parameter fell back
     /// to its no-effect value once later effects were in).
     pub withdrawn: Vec<String>,
+    /// Structure the fluid's own shape took up in the final model (a step near reversal
+    /// that follows the yield force): not findings, no effect of the library.
+    pub fluid_shape: Vec<String>,
     /// Structure the final model leaves beyond noise (empty when the residual is noise).
     pub unexplained: Vec<Unexplained>,
     /// Every candidate tried.
@@ -355,6 +358,9 @@ pub fn render_markdown(r: &Report) -> String {
     }
     for w in &r.withdrawn {
         let _ = writeln!(s, "- withdrawn: {w}");
+    }
+    for w in &r.fluid_shape {
+        let _ = writeln!(s, "- the fluid's shape (not a finding): {w}");
     }
     if !r.unexplained.is_empty() {
         let _ = writeln!(s, "\n## Unexplained\n");

@@ -17,6 +17,12 @@
 //! an interval and the filter sees it interpolated linearly between the samples
 //! ([`crate::antialias::AntiAlias::resample`]). The model's states (field lag, chamber
 //! compliance) are integrated over the sub-steps.
+//!
+//! An interval where the current steps ([`crate::current`]) is refined too: its inserted
+//! points take the level before or after the step, and the one point whose sub-interval
+//! holds the step takes the blend of the two that puts the piecewise-linear current's
+//! transition where the step is (equal area: the filter sees the step at its time to
+//! second order, not rounded to an eighth of a sample).
 
 /// Sub-intervals per refined sample interval (and the rate, in samples, of the filter
 /// that runs behind the model).
@@ -69,8 +75,9 @@ pub struct Channels<'a> {
 
 impl SubGrid {
     /// The grid with `m` sub-intervals in each interval where the velocity changes sign or
-    /// comes within twice its change over the interval of zero.
-    pub fn build(c: &Channels, m: usize) -> Self {
+    /// comes within twice its change over the interval of zero, or where the current steps
+    /// (`step_at[j]`: the step's position as a fraction of the interval (j − 1, j]).
+    pub fn build(c: &Channels, m: usize, step_at: &[Option<f64>]) -> Self {
         let n = c.h.len();
         let m = m.max(1);
         let mut g = SubGrid {
@@ -80,19 +87,31 @@ impl SubGrid {
             ..SubGrid::default()
         };
         for j in 0..n {
-            let refine = m > 1 && j > 0 && c.h[j] > 0.0 && {
+            let step = step_at.get(j).copied().flatten().filter(|_| j > 0);
+            let reversal = m > 1 && j > 0 && c.h[j] > 0.0 && {
                 let (v0, v1) = (c.v[j - 1], c.v[j]);
                 let sweep = 2.0 * c.a[j - 1].abs().max(c.a[j].abs()) * c.h[j];
                 v0 * v1 <= 0.0 || v0.abs().min(v1.abs()) < sweep
             };
+            let refine = reversal || (m > 1 && j > 0 && c.h[j] > 0.0 && step.is_some());
             if refine {
                 g.refined[j] = true;
                 let h = c.h[j];
                 for s in 1..m {
                     let w = s as f64 / m as f64;
                     let lerp = |y: &[f64]| (1.0 - w) * y[j - 1] + w * y[j];
-                    let (v, a) = hermite(c.v[j - 1], c.a[j - 1], c.v[j], c.a[j], h, w);
-                    g.push(h / m as f64, v, a, lerp(c.x), lerp(c.i), lerp(c.energy_kj));
+                    // Cubic through a reversal; linear where only the current steps (as
+                    // the unrefined intervals are seen, and safe where records are joined).
+                    let (v, a) = if reversal {
+                        hermite(c.v[j - 1], c.a[j - 1], c.v[j], c.a[j], h, w)
+                    } else {
+                        (lerp(c.v), lerp(c.a))
+                    };
+                    let i = match step {
+                        Some(at) => stepped_current(c.i[j - 1], c.i[j], at, s, m),
+                        None => lerp(c.i),
+                    };
+                    g.push(h / m as f64, v, a, lerp(c.x), i, lerp(c.energy_kj));
                     g.v_sigma.push(lerp(c.v_sigma));
                 }
             }
@@ -141,6 +160,31 @@ impl SubGrid {
     }
 }
 
+/// The current at inserted point `s` of `m` in an interval where it steps from `from` to
+/// `to` at the fraction `at`: `from` before the step's sub-interval, `to` after it. Between
+/// the sub-interval's two points the model's output is taken as linear, a ramp centred on
+/// the sub-interval's middle; to centre it on the step, one of them takes a blend: with the
+/// step at ψ ∈ \[0, 1) of its sub-interval, the point before it carries `to` with weight
+/// ½ − ψ (ψ < ½), or the point after it `from` with weight ψ − ½, which gives the ramp the
+/// step's area. A blend that would fall on a sample is left out (the step then rounds to
+/// the sub-interval's middle).
+fn stepped_current(from: f64, to: f64, at: f64, s: usize, m: usize) -> f64 {
+    let pos = at * m as f64;
+    let lo = (pos.floor() as usize).min(m - 1);
+    let psi = pos - lo as f64;
+    if s <= lo {
+        if s == lo && psi < 0.5 {
+            from + (0.5 - psi) * (to - from)
+        } else {
+            from
+        }
+    } else if s == lo + 1 && psi > 0.5 {
+        to - (psi - 0.5) * (to - from)
+    } else {
+        to
+    }
+}
+
 /// Cubic Hermite interpolation of a velocity over an interval of length `h` at the
 /// fraction `w`, from the values and slopes (accelerations) at its ends: `(v, dv/dt)`.
 fn hermite(v0: f64, a0: f64, v1: f64, a1: f64, h: f64, w: f64) -> (f64, f64) {
@@ -182,7 +226,7 @@ mod tests {
             energy_kj: &zeros,
             v_sigma: &zeros,
         };
-        let g = SubGrid::build(&c, 8);
+        let g = SubGrid::build(&c, 8, &[]);
         for j in 0..n {
             assert_eq!(g.v[g.pos[j]], v[j]);
             if g.refined[j] {
@@ -203,5 +247,43 @@ mod tests {
         // 8 reversals in 2 s, each refined over a few intervals, not more.
         let refined = g.refined.iter().filter(|r| **r).count();
         assert!((8..=8 * 6).contains(&refined), "{refined}");
+    }
+
+    #[test]
+    fn a_current_step_is_refined_and_keeps_its_area() {
+        // Still rod, current 0 → 1 A stepping 0.3 into the interval (4, 5].
+        let n = 10;
+        let h: Vec<f64> = (0..n).map(|k| if k == 0 { 0.0 } else { 1.0 }).collect();
+        let zeros = vec![0.0; n];
+        let ones = vec![1.0; n];
+        let i: Vec<f64> = (0..n).map(|k| if k < 5 { 0.0 } else { 1.0 }).collect();
+        let c = Channels {
+            h: &h,
+            v: &ones,
+            a: &zeros,
+            x: &zeros,
+            i: &i,
+            energy_kj: &zeros,
+            v_sigma: &zeros,
+        };
+        let mut steps = vec![None; n];
+        for at in [0.3, 0.05, 0.52, 0.97] {
+            steps[5] = Some(at);
+            let g = SubGrid::build(&c, 8, &steps);
+            assert!(g.refined[5] && !g.refined[4] && !g.refined[6]);
+            // The piecewise-linear current over the interval has the step's area: 1 − at.
+            let pts: Vec<f64> = (g.pos[4]..=g.pos[5]).map(|p| g.i[p]).collect();
+            let area: f64 = pts.windows(2).map(|w| 0.5 * (w[0] + w[1]) / 8.0).sum();
+            let rounding = if !(1.0 / 16.0..=15.0 / 16.0).contains(&at) {
+                1.0 / 16.0
+            } else {
+                1e-12
+            };
+            assert!(
+                (area - (1.0 - at)).abs() <= rounding,
+                "at {at}: area {area}"
+            );
+            assert!(pts.iter().all(|x| (0.0..=1.0).contains(x)));
+        }
     }
 }
