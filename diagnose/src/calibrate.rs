@@ -31,7 +31,7 @@ use serde::Serialize;
 use twin::Effect;
 
 use crate::data::Prepared;
-use crate::model::{fit_limited, sse_train, Fit};
+use crate::model::{fit_limited, Fit};
 use crate::stats;
 
 /// Settings of the calibration.
@@ -63,10 +63,13 @@ impl Default for Calibration {
 }
 
 impl Calibration {
-    /// Significance level of one test: the family-wise rate over L (L + 1)/2 tests.
-    pub fn alpha_per_test(&self) -> f64 {
+    /// Significance level of one test: the family-wise rate over every test forward
+    /// selection can make on the record, L (L + 1)/2 for L effects plus, for each of the
+    /// `pairs` pair candidates the record can identify ([`crate::select::PAIRS`]), one in
+    /// each of the L − 1 rounds where both its effects may remain.
+    pub fn alpha_per_test(&self, pairs: usize) -> f64 {
         let l = Effect::ALL.len() as f64;
-        self.family_alpha / (l * (l + 1.0) / 2.0)
+        self.family_alpha / (l * (l + 1.0) / 2.0 + pairs as f64 * (l - 1.0))
     }
 }
 
@@ -150,14 +153,14 @@ fn replicate(d: &Prepared, current: &Fit, r: &[f64], block: usize, seed: u64) ->
 /// Null statistics `T*_e` for the candidates in `cands`, one row per replicate.
 /// `fit_candidate` fits a candidate on top of a model on given data.
 #[allow(clippy::too_many_arguments)]
-pub fn null_statistics(
+pub fn null_statistics<C: Copy + Sync>(
     d: &Prepared,
     current: &Fit,
     noise: &[f64],
-    cands: &[Effect],
+    cands: &[C],
     cal: &Calibration,
     round: usize,
-    fit_candidate: &(dyn Fn(&Prepared, &Fit, Effect) -> Fit + Sync),
+    fit_candidate: &(dyn Fn(&Prepared, &Fit, C) -> Fit + Sync),
     progress: &(dyn Fn(usize) + Sync),
 ) -> Vec<Vec<f64>> {
     if cands.is_empty() {
@@ -178,8 +181,7 @@ pub fn null_statistics(
             .wrapping_add(k as u64);
         let rd = replicate(d, current, r, block, seed);
         // The current model refitted on the replicate, from its own values.
-        let mut m = fit_limited(&rd, &current.layout, &current.theta, 10);
-        m.train_sse = sse_train(&rd, &m.force);
+        let m = fit_limited(&rd, &current.layout, &current.theta, 10);
         let row = cands
             .iter()
             .map(|&e| statistic(&m, &fit_candidate(&rd, &m, e)))
@@ -234,9 +236,9 @@ pub fn judge_null(t: f64, null: &[f64], dp: usize, alpha: f64) -> Calibrated {
 }
 
 /// The evidence of a candidate that was not bootstrapped: its statistic is below the
-/// screening floor (`screen_fraction` × the white-noise threshold).
-pub fn screened(t: f64, dp: usize, cal: &Calibration) -> Calibrated {
-    let alpha = cal.alpha_per_test();
+/// screening floor (`screen_fraction` × the white-noise threshold), at the per-test level
+/// `alpha` ([`Calibration::alpha_per_test`]).
+pub fn screened(t: f64, dp: usize, cal: &Calibration, alpha: f64) -> Calibrated {
     Calibrated {
         statistic: t,
         threshold: stats::chi2_quantile(1.0 - alpha, dp as f64) * cal.screen_fraction,
