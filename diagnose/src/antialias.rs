@@ -163,6 +163,12 @@ impl AntiAlias {
         }
     }
 
+    /// This filter run at `m` times the sample rate, as [`AntiAlias::resample`] runs it (its
+    /// step is one sub-sample: `delay_samples / m` is its advance in samples).
+    pub fn at_subsample_rate(&self, m: usize) -> AntiAlias {
+        AntiAlias::butterworth2(self.cutoff_per_fs / m.max(1) as f64, 1.0)
+    }
+
     /// The filter and advance of [`AntiAlias::apply`] run at `g.m` times the sample rate
     /// on model outputs given on the sub-sample grid `g` ([`crate::subsample`]), read
     /// back at the samples. `y` is row-major `g.len() × cols`; the result `n × cols`, n the
@@ -173,7 +179,7 @@ impl AntiAlias {
     pub fn resample(&self, g: &SubGrid, y: &[f64], cols: usize) -> Vec<f64> {
         let (n, m) = (g.pos.len(), g.m.max(1));
         debug_assert_eq!(y.len(), g.len() * cols);
-        let fine = AntiAlias::butterworth2(self.cutoff_per_fs / m as f64, 1.0);
+        let fine = self.at_subsample_rate(m);
         let b = [fine.b0, 2.0 * fine.b0, fine.b0];
         let (a1, a2) = (fine.a1, fine.a2);
         let kd = fine.delay_samples.floor() as usize;

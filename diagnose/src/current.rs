@@ -100,18 +100,7 @@ fn noise_sigma(i: &[f64], h: &[f64]) -> f64 {
         .filter(|&k| h[k] > 0.0 && h[k + 1] > 0.0)
         .map(|k| (i[k] - 0.5 * (i[k - 1] + i[k + 1])).abs())
         .collect();
-    if d.is_empty() {
-        return 0.0;
-    }
-    let mid = d.len() / 2;
-    let (_, m, _) = d.select_nth_unstable_by(mid, f64::total_cmp);
-    1.4826 * *m / 1.5f64.sqrt()
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    let mid = v.len() / 2;
-    let (_, m, _) = v.select_nth_unstable_by(mid, f64::total_cmp);
-    *m
+    numerics::stats::median(&mut d).map_or(0.0, |m| 1.4826 * m / 1.5f64.sqrt())
 }
 
 impl CurrentChannel {
@@ -155,7 +144,7 @@ impl CurrentChannel {
             if (tail - head).abs() > MAX_DRIFT_PER_SIGMA * noise {
                 continue;
             }
-            let level = median(i[r.clone()].to_vec());
+            let level = crate::stats::median(i[r.clone()].to_vec());
             plateaus.push((r, level));
         }
         // The 5-sample window leaves two samples at each end of a plateau out: grow it

@@ -150,13 +150,13 @@ impl Prepared {
         let dt = self.measurement.sample_interval_s;
         // The delay the model's force is advanced by: the filter's, run at the sub-sample
         // grid's rate (crate::antialias::AntiAlias::resample), close to the analog one.
-        let m = crate::subsample::OVERSAMPLING as f64;
+        let m = crate::subsample::OVERSAMPLING;
         let placed = self.current.place(
             &self.t,
             &self.h,
             aa.map(|a| {
-                let fine = crate::antialias::AntiAlias::butterworth2(a.cutoff_per_fs / m, 1.0);
-                (a.cutoff_hz, fine.delay_samples / m * dt)
+                let fine = a.at_subsample_rate(m);
+                (a.cutoff_hz, fine.delay_samples / m as f64 * dt)
             }),
         );
         self.i = placed.i;

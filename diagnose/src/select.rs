@@ -743,18 +743,21 @@ struct Verdict {
 }
 
 /// Fit and judge every remaining candidate on top of `current`, in parallel.
+#[allow(clippy::too_many_arguments)]
 fn fit_and_judge(
     d: &Prepared,
     reg: &Regions,
     current: &Fit,
     remaining: &[Effect],
+    pairs: &[(Effect, Effect)],
     flags: &[usize],
     th: &AcceptanceThresholds,
 ) -> Vec<Judged> {
     let mut cands: Vec<Candidate> = remaining.iter().map(|e| (*e, None)).collect();
     cands.extend(
-        identifiable_pairs(d)
-            .into_iter()
+        pairs
+            .iter()
+            .copied()
             .filter(|(a, b)| remaining.contains(a) && remaining.contains(b))
             .map(|(a, b)| (a, Some(b))),
     );
@@ -776,11 +779,17 @@ fn round_verdicts(
     round: usize,
     progress: &(dyn Fn(Progress) + Sync),
 ) -> Vec<Verdict> {
-    let judged = fit_and_judge(d, reg, current, remaining, flags, &opts.thresholds);
+    // The pairs this record can identify: tried as candidates, and counted in the
+    // per-test level (the calibrated selector's only; the rules have no pairs).
+    let pairs = if opts.selector == Selector::Calibrated {
+        identifiable_pairs(d)
+    } else {
+        Vec::new()
+    };
+    let judged = fit_and_judge(d, reg, current, remaining, &pairs, flags, &opts.thresholds);
     if opts.selector != Selector::Calibrated {
         return judged
             .into_iter()
-            .filter(|j| j.partner.is_none())
             .map(|j| Verdict {
                 shape_pass: false,
                 pass: j.ok(),
@@ -791,7 +800,7 @@ fn round_verdicts(
             .collect();
     }
     let cal = &opts.calibration;
-    let alpha = cal.alpha_per_test(identifiable_pairs(d).len());
+    let alpha = cal.alpha_per_test(pairs.len());
     let dp = |j: &Judged| j.fit.layout.len() - current.layout.len();
     let stat: Vec<f64> = judged
         .iter()
@@ -1314,7 +1323,6 @@ pub fn diagnose_with_progress(
     } else {
         (sel.current, Vec::new())
     };
-
     // The final model is refitted with the yield softness held at the baseline's value
     // and at 0 (in parallel); the lower fitting SSE wins. The baseline settled it without
     // the accepted effects: on UTFSM 25mm0x5Hz its 0.52 left the final held-out RMS at
