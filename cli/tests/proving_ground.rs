@@ -166,16 +166,20 @@ fn a_bi_viscous_fluid_below_yield_over_half_the_stroke_is_fitted_to_the_noise() 
     );
 }
 
-/// The current channel's measurement model (diagnose::current) on two nulls of the
+/// The current channel's measurement model (diagnose::current) on three nulls of the
 /// independent simulator. Seed 77: 1 kHz, a random current held 0.3–1 s at a time (30
 /// steps), 2.2 mA of channel noise; taken as recorded, the model saw each filtered step
 /// and filtered its force again, and the baseline's held-out RMS was 6.15 σ_F. Seed 131:
 /// 2.5 kHz, three steps; a field lag of 0.14 ms passed at T = 3.3 against a bootstrap
-/// threshold of 0.05, below the white-noise one. Both must find the plateaus and steps,
-/// report nothing, and seed 77's baseline must come within 2.2 σ_F (1.89 with the model).
+/// threshold of 0.05, below the white-noise one. Seed 213: 2 kHz, 14 steps, AR(1) force
+/// noise; the cut-off fitted to the force was 0.15 f_s against the true 0.372, the force
+/// 1–2 samples after each step was 20–30 σ_F off, and a field lag of 0.34 ms passed. Each
+/// must find the plateaus and steps, read its filter from the steps to within 0.01 f_s of
+/// the generated one, report nothing, and come within its bound (seed 77: 2.2 σ_F, 1.89
+/// with the model; seed 213: 1.5, 1.39 with it).
 #[test]
 fn current_steps_and_noise_are_modelled_and_no_lag_is_made_of_them() {
-    for (seed, steps, within) in [(77, 30, 2.2), (131, 3, 1.15)] {
+    for (seed, steps, within) in [(77, 30, 2.2), (131, 3, 1.15), (213, 14, 1.5)] {
         let (m, d) = generate_and_diagnose(seed);
         assert!(
             m["hidden"].as_array().unwrap().is_empty(),
@@ -189,6 +193,14 @@ fn current_steps_and_noise_are_modelled_and_no_lag_is_made_of_them() {
             "seed {seed}: current noise {noise} A, generated with {sigma_i} A"
         );
         assert_eq!(cur["steps"], steps, "seed {seed}: {cur}");
+        let aa = &d["measurement"]["anti_alias"];
+        let true_cutoff = m["measurement"]["aa_cutoff_hz"].as_f64().unwrap()
+            / m["excitation"]["fs_hz"].as_f64().unwrap();
+        assert_eq!(aa["source"], "current_steps", "seed {seed}: {aa}");
+        assert!(
+            (aa["cutoff_per_fs"].as_f64().unwrap() - true_cutoff).abs() < 0.01,
+            "seed {seed}: cut-off {aa} against {true_cutoff} f_s"
+        );
         let sigma_f = m["sigma_F_N"].as_f64().unwrap();
         let held_out = d["baseline"]["holdout_rmse_N"].as_f64().unwrap();
         eprintln!("seed {seed}: {cur}, baseline {:.2} σ_F", held_out / sigma_f);

@@ -12,8 +12,11 @@
 //! `F_meas(t) = H[F_model(v)](t) = (H u)(t + τ_g)`: filter the model's force, then advance
 //! it by the filter's low-frequency group delay. H is a unit-gain second-order Butterworth
 //! low-pass (the usual analog front end), discretised by the bilinear transform with
-//! pre-warping; its cut-off is fitted with the baseline from a grid of fractions of the
-//! sample rate, "no filter" included ([`crate::select`]).
+//! pre-warping. Its cut-off is read from the current channel's steps, the filter's own
+//! step response seen through the same front end
+//! ([`crate::current::CurrentChannel::front_end_cutoff_hz`]), where they show it;
+//! otherwise it is fitted with the baseline from a grid of fractions of the sample rate,
+//! "no filter" included ([`crate::select`]).
 
 use serde::Serialize;
 
@@ -77,12 +80,24 @@ pub struct AntiAlias {
     pub cutoff_per_fs: f64,
     /// Group delay at low frequency, advanced back \[samples\].
     pub delay_samples: f64,
+    /// Where the cut-off came from.
+    pub source: CutoffSource,
     #[serde(skip)]
     b0: f64,
     #[serde(skip)]
     a1: f64,
     #[serde(skip)]
     a2: f64,
+}
+
+/// Where a filter's cut-off came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CutoffSource {
+    /// Read from the current channel's steps ([`crate::current::CurrentChannel::front_end_cutoff_hz`]).
+    CurrentSteps,
+    /// Fitted with the baseline to the force, from [`CUTOFF_GRID`].
+    ForceFit,
 }
 
 /// Cut-off fractions of the sample rate tried for the anti-alias filter (besides none).
@@ -103,9 +118,18 @@ impl AntiAlias {
             cutoff_hz: cutoff_per_fs / dt,
             cutoff_per_fs,
             delay_samples: delay,
+            source: CutoffSource::ForceFit,
             b0,
             a1,
             a2,
+        }
+    }
+
+    /// The same filter, its cut-off read from the current channel's steps.
+    pub fn from_current_steps(self) -> Self {
+        AntiAlias {
+            source: CutoffSource::CurrentSteps,
+            ..self
         }
     }
 

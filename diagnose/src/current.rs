@@ -23,6 +23,10 @@
 //!   the filter's step response, plus the filter's group delay (the frame the other
 //!   channels are in). The sub-sample grid carries the step inside its interval
 //!   ([`crate::subsample`]), so the model's force steps there and is filtered once.
+//! * **The front end's cut-off.** The steps are the anti-alias filter's step response,
+//!   sampled: their shape gives its cut-off ([`CurrentChannel::cutoff_from_steps`]),
+//!   independently of any force model, and the force is filtered under it
+//!   ([`CurrentChannel::front_end_cutoff_hz`] says when it is clear enough).
 //! * Anything else (a continuously varying current, a coil current rising over tens of
 //!   samples) is left as recorded.
 
@@ -41,6 +45,30 @@ pub const MAX_DRIFT_PER_SIGMA: f64 = 4.0;
 pub const MAX_TRANSITION_SAMPLES: usize = 16;
 /// Smallest step, in σ_I.
 pub const MIN_STEP_PER_SIGMA: f64 = 8.0;
+
+/// Smallest step that enters the cut-off fit ([`CurrentChannel::cutoff_from_steps`]), in
+/// σ_I.
+pub const MIN_CUTOFF_STEP_PER_SIGMA: f64 = 30.0;
+/// Largest relative standard error of a cut-off read from the steps that is taken.
+pub const MAX_CUTOFF_SE_REL: f64 = 0.1;
+/// Largest RMS misfit of the steps' Butterworth responses, in σ_I, for their cut-off to be
+/// taken as the front end's.
+pub const MAX_STEP_MISFIT_PER_SIGMA: f64 = 2.0;
+/// Range of the cut-off searched from the steps, as fractions of the sample rate.
+pub const CUTOFF_SEARCH_PER_FS: (f64, f64) = (0.05, 0.5);
+
+/// The anti-alias cut-off read from the current channel's steps.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct CutoffFromSteps {
+    /// Cut-off \[Hz\].
+    pub cutoff_hz: f64,
+    /// Its standard error \[Hz\] (from the misfit's curvature).
+    pub se_hz: f64,
+    /// Steps it was read from.
+    pub steps: usize,
+    /// RMS misfit of the step responses \[A\].
+    pub residual_rms_a: f64,
+}
 
 /// A step of the current between two plateaus.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -68,6 +96,8 @@ pub struct CurrentChannel {
     pub plateaus: Vec<(Range<usize>, f64)>,
     /// Steps between plateaus.
     pub steps: Vec<CurrentStep>,
+    /// The anti-alias cut-off the steps show ([`CurrentChannel::cutoff_from_steps`]).
+    pub cutoff: Option<CutoffFromSteps>,
 }
 
 /// What the conditioning did, for the report.
@@ -81,6 +111,9 @@ pub struct CurrentSummary {
     pub plateau_share: f64,
     /// Number of steps modelled as sharp steps.
     pub steps: usize,
+    /// The anti-alias cut-off read from the steps (`null`: no step high enough, or the
+    /// fit ends at the edge of its range).
+    pub cutoff_from_steps: Option<CutoffFromSteps>,
 }
 
 /// The current at the samples and, per sample j, where in the interval (j − 1, j] the
@@ -197,12 +230,18 @@ impl CurrentChannel {
                 midpoint_s: t[cross - 1] + frac * h[cross],
             });
         }
-        Self {
+        let mut channel = Self {
             raw: i.to_vec(),
             noise_a: noise,
             plateaus,
             steps,
+            cutoff: None,
+        };
+        let mut dts: Vec<f64> = h.iter().copied().filter(|&x| x > 0.0).collect();
+        if let Some(dt) = numerics::stats::median(&mut dts) {
+            channel.cutoff = channel.cutoff_from_steps(t, dt);
         }
+        channel
     }
 
     /// The summary for the report.
@@ -213,6 +252,7 @@ impl CurrentChannel {
             plateaus: self.plateaus.len(),
             plateau_share: on as f64 / self.raw.len().max(1) as f64,
             steps: self.steps.len(),
+            cutoff_from_steps: self.cutoff,
         }
     }
 
@@ -249,39 +289,104 @@ impl CurrentChannel {
         PlacedCurrent { i, step_at }
     }
 
+    /// The front end's anti-alias cut-off as the current channel shows it: the cut-off
+    /// \[Hz\] whose analog second-order Butterworth step response, each step at its own
+    /// fitted time, best fits the transitions of the steps at least
+    /// [`MIN_CUTOFF_STEP_PER_SIGMA`] σ_I high (least squares in log fc, golden section over
+    /// [`CUTOFF_SEARCH_PER_FS`] of the sample rate `1/dt`). `None` without such a step, or
+    /// when the best cut-off lies at an end of the range (the transitions say no more than
+    /// "faster" or "slower" than it can tell). The force, displacement and velocity go
+    /// through the same front end ([`crate::antialias`]); a coil that rises over tens of
+    /// samples is no step ([`MAX_TRANSITION_SAMPLES`]) and does not enter.
+    pub fn cutoff_from_steps(&self, t: &[f64], dt: f64) -> Option<CutoffFromSteps> {
+        let steps: Vec<&CurrentStep> = self
+            .steps
+            .iter()
+            .filter(|s| (s.to_a - s.from_a).abs() >= MIN_CUTOFF_STEP_PER_SIGMA * self.noise_a)
+            .collect();
+        if steps.is_empty() {
+            return None;
+        }
+        let sse = |fc: f64| -> f64 {
+            steps
+                .iter()
+                .map(|s| {
+                    let ts = self.fitted_step_time(s, t, fc);
+                    self.step_sse(s, t, fc, ts)
+                })
+                .sum()
+        };
+        let (lo, hi) = (
+            (CUTOFF_SEARCH_PER_FS.0 / dt).ln(),
+            (CUTOFF_SEARCH_PER_FS.1 / dt).ln(),
+        );
+        let (a, b) = numerics::optimize::golden_section(|u| sse(u.exp()), lo, hi, 50);
+        let u = 0.5 * (a + b);
+        let margin = 0.02 * (hi - lo);
+        if u - lo < margin || hi - u < margin {
+            return None;
+        }
+        let fc = u.exp();
+        let best = sse(fc);
+        let dof = steps
+            .iter()
+            .map(|s| (s.after + 2).min(t.len() - 1) - s.before.saturating_sub(2) + 1)
+            .sum::<usize>()
+            .saturating_sub(steps.len() + 1)
+            .max(1);
+        // Curvature of the SSE in fc, scaled by the residual variance: its standard error.
+        let step = 0.01 * fc;
+        let curv = (sse(fc + step) - 2.0 * best + sse(fc - step)) / (step * step);
+        let var = best / dof as f64;
+        let se_hz = if curv > 0.0 {
+            (2.0 * var / curv).sqrt()
+        } else {
+            f64::INFINITY
+        };
+        Some(CutoffFromSteps {
+            cutoff_hz: fc,
+            se_hz,
+            steps: steps.len(),
+            residual_rms_a: var.sqrt(),
+        })
+    }
+
+    /// The front end's cut-off \[Hz\] as the steps show it, when they show it clearly:
+    /// to within [`MAX_CUTOFF_SE_REL`] of itself, with the step responses fitting to within
+    /// [`MAX_STEP_MISFIT_PER_SIGMA`] of the channel's noise (a coil's first-order rise, or
+    /// an amplifier's overshoot, is not the anti-alias filter's response).
+    pub fn front_end_cutoff_hz(&self) -> Option<f64> {
+        self.cutoff
+            .filter(|c| {
+                c.se_hz <= MAX_CUTOFF_SE_REL * c.cutoff_hz
+                    && c.residual_rms_a <= MAX_STEP_MISFIT_PER_SIGMA * self.noise_a
+            })
+            .map(|c| c.cutoff_hz)
+    }
+
+    /// Squared misfit of step `s` at time `ts` under a Butterworth of cut-off `fc` over its
+    /// transition and two samples either side.
+    fn step_sse(&self, s: &CurrentStep, t: &[f64], fc: f64, ts: f64) -> f64 {
+        let lo_k = s.before.saturating_sub(2);
+        let hi_k = (s.after + 2).min(t.len() - 1);
+        (lo_k..=hi_k)
+            .map(|q| {
+                let y = s.from_a + (s.to_a - s.from_a) * butterworth2_step(t[q] - ts, fc);
+                (self.raw[q] - y).powi(2)
+            })
+            .sum()
+    }
+
     /// The true time of step `s` under a second-order Butterworth of cut-off `fc` \[Hz\]:
     /// the time whose analog step response best fits the recorded transition (least
     /// squares over the transition and two samples either side, golden section).
     fn fitted_step_time(&self, s: &CurrentStep, t: &[f64], fc: f64) -> f64 {
-        let lo_k = s.before.saturating_sub(2);
-        let hi_k = (s.after + 2).min(t.len() - 1);
-        let sse = |ts: f64| -> f64 {
-            (lo_k..=hi_k)
-                .map(|q| {
-                    let y = s.from_a + (s.to_a - s.from_a) * butterworth2_step(t[q] - ts, fc);
-                    (self.raw[q] - y).powi(2)
-                })
-                .sum()
-        };
-        let (mut a, mut b) = (t[s.before] - 3.0 / fc, t[s.after]);
-        let g = 0.5 * (5f64.sqrt() - 1.0);
-        let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
-        let (mut fc_, mut fd) = (sse(c), sse(d));
-        for _ in 0..60 {
-            if fc_ < fd {
-                b = d;
-                d = c;
-                fd = fc_;
-                c = b - g * (b - a);
-                fc_ = sse(c);
-            } else {
-                a = c;
-                c = d;
-                fc_ = fd;
-                d = a + g * (b - a);
-                fd = sse(d);
-            }
-        }
+        let (a, b) = numerics::optimize::golden_section(
+            |ts| self.step_sse(s, t, fc, ts),
+            t[s.before] - 3.0 / fc,
+            t[s.after],
+            60,
+        );
         0.5 * (a + b)
     }
 }
@@ -368,6 +473,46 @@ mod tests {
         assert_eq!(p.step_at.iter().filter(|s| s.is_some()).count(), 3);
         let flat = &p.i[500..700];
         assert!(flat.iter().all(|x| *x == flat[0]));
+    }
+
+    #[test]
+    fn the_steps_show_the_front_ends_cut_off() {
+        // Three steps of 0.5–1.2 A through 300 Hz (0.3 f_s) with 3 mA of noise: the
+        // cut-off comes back within 2 % and within three of its standard errors.
+        let (t, h, i, _) = record(3e-3);
+        let c = CurrentChannel::condition(&t, &h, &i);
+        let est = c.cutoff.expect("three steps of 170-400 σ_I");
+        assert_eq!(est.steps, 3);
+        assert!(
+            (est.cutoff_hz / 300.0 - 1.0).abs() < 0.02,
+            "{} Hz",
+            est.cutoff_hz
+        );
+        assert!(
+            (est.cutoff_hz - 300.0).abs() < 3.0 * est.se_hz && est.se_hz < 6.0,
+            "{est:?}"
+        );
+        assert!((est.residual_rms_a / 3e-3 - 1.0).abs() < 0.3, "{est:?}");
+        assert_eq!(c.summary().cutoff_from_steps, Some(est));
+        // A first-order rise of the same speed (a coil, not the front end) is still a
+        // step, but no Butterworth fits it to the channel's noise: its misfit says so.
+        let tau = 1.0 / (2.0 * std::f64::consts::PI * 300.0);
+        let coil: Vec<f64> = t
+            .iter()
+            .map(|&tk| {
+                if tk < 0.5 {
+                    0.2
+                } else {
+                    0.2 + 0.8 * (1.0 - (-(tk - 0.5) / tau).exp())
+                }
+            })
+            .collect();
+        let c = CurrentChannel::condition(&t, &h, &coil);
+        assert_eq!(c.steps.len(), 1);
+        assert_eq!(c.front_end_cutoff_hz(), None, "{:?}", c.cutoff);
+        // The Butterworth record's is taken.
+        let c = CurrentChannel::condition(&t, &h, &i);
+        assert_eq!(c.front_end_cutoff_hz(), Some(c.cutoff.unwrap().cutoff_hz));
     }
 
     #[test]

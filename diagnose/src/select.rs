@@ -1160,7 +1160,9 @@ pub fn diagnose(signals: &Signals, input: &str, opts: &Options) -> Result<Diagno
 
 /// Fit the baseline and, with it, the rig's anti-alias filter ([`crate::antialias`]).
 ///
-/// The baseline is fitted without a filter and then, from there, under a second-order
+/// Where the current channel's steps show the front end's cut-off
+/// ([`crate::current::CurrentChannel::front_end_cutoff_hz`]), the baseline is fitted under
+/// that filter. Otherwise it is fitted without a filter and then, from there, under a second-order
 /// Butterworth at each cut-off of [`crate::antialias::CUTOFF_GRID`] (in parallel); the
 /// cut-off with the smallest fitting SSE is the filter's best guess. A low-pass on the
 /// force also lags it, as a compliant fluid does, so the filter is kept only if it still
@@ -1182,6 +1184,17 @@ fn baseline_and_anti_alias(d: &mut Prepared, base_effects: &[Effect]) -> Fit {
     }
     let lay = plain.layout.clone();
     let dt = d.measurement.sample_interval_s;
+    // The current's steps went through the same front end as the force: where they show
+    // its cut-off clearly, that is the filter, read from a channel no force model can
+    // bend. (The force's fitting SSE, before the samples are weighted, is ruled by the
+    // reversals' velocity error: on seeds 0-299 the grid's cut-off lay more than 0.05 f_s
+    // from the true one on 137 records, and 63 % of those came out exact against 90 %.)
+    if let Some(fc) = d.current.front_end_cutoff_hz() {
+        d.set_anti_alias(Some(
+            AntiAlias::butterworth2(fc * dt, dt).from_current_steps(),
+        ));
+        return fit(d, &lay, &plain.theta);
+    }
     let mut filtered: Vec<(AntiAlias, Fit)> =
         numerics::parallel::map_indexed(CUTOFF_GRID.len(), CUTOFF_GRID.len(), |k| {
             let aa = AntiAlias::butterworth2(CUTOFF_GRID[k], dt);

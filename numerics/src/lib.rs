@@ -5,6 +5,7 @@
 //! * [`linalg`]: the small dense solves and inverses, through nalgebra's LU and Cholesky
 //!   decompositions.
 //! * [`least_squares`]: the Levenberg–Marquardt loop shared by every nonlinear fit.
+//! * [`optimize`]: golden-section search in one dimension.
 //! * [`parallel`]: independent jobs on a few scoped threads, results in index order.
 //! * [`signal`]: stuck channels (runs of one exact value), on a record and on a stream.
 //! * [`stats`]: quantiles and the median, the lag-1 autocorrelation and the AR(1)
@@ -12,6 +13,7 @@
 
 pub mod least_squares;
 pub mod linalg;
+pub mod optimize;
 pub mod parallel;
 pub mod signal;
 pub mod stats;
