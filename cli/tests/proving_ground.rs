@@ -166,6 +166,39 @@ fn a_bi_viscous_fluid_below_yield_over_half_the_stroke_is_fitted_to_the_noise() 
     );
 }
 
+/// A bi-viscous null (proving-ground seed 200: viscosity ratio 265, a random current)
+/// whose steep force rise at low speed a constant seal-friction step of 2.1 kN fitted, with
+/// no presliding displacement resolved, better than the same step scaled by the yield
+/// force: it was reported as a seal. Scaled by the viscous coefficient it fits better still,
+/// so it is the fluid's shape: nothing is reported, and the final model carries it.
+#[test]
+fn a_bi_viscous_rise_at_low_speed_is_the_fluids_shape_not_a_seal() {
+    let (m, d) = generate_and_diagnose(200);
+    assert!(
+        m["hidden"].as_array().unwrap().is_empty(),
+        "seed 200 is a null"
+    );
+    assert_eq!(m["fluid"]["law"], "biviscous", "the scenario changed");
+    assert!(
+        d["findings"].as_array().unwrap().is_empty(),
+        "false findings on a null: {}",
+        d["findings"]
+    );
+    let shape = d["fluid_shape"].as_array().unwrap();
+    assert!(
+        shape
+            .iter()
+            .any(|s| s.as_str().unwrap().contains("viscous coefficient")),
+        "no viscosity-scaled step in the fluid's shape: {shape:?}"
+    );
+    // Carried for prediction, it must predict the held-out blocks better.
+    let (base, fin) = (
+        d["baseline"]["holdout_rmse_N"].as_f64().unwrap(),
+        d["final"]["holdout_rmse_N"].as_f64().unwrap(),
+    );
+    assert!(fin < base, "held-out {base} → {fin} N");
+}
+
 /// The current channel's measurement model (diagnose::current) on three nulls of the
 /// independent simulator. Seed 77: 1 kHz, a random current held 0.3–1 s at a time (30
 /// steps), 2.2 mA of channel noise; taken as recorded, the model saw each filtered step

@@ -44,11 +44,27 @@ pub struct Layout {
     /// Whether the yield softness ([`Layout::softness_index`]) is fitted; when not, it is
     /// held at its start value (its Jacobian column is zero).
     pub soft: bool,
-    /// The seal friction's step scaled by the local yield force, `F_c (F_y(I)/F̄_y) s`
-    /// (F̄_y the knots' mean): the alternative a current-independent friction must beat
-    /// (a force step near reversal that follows the fluid's yield force at every current
-    /// is the fluid's shape, not a seal). `false`: the friction of the library.
-    pub friction_scaled: bool,
+    /// How the seal friction's step scales with the current: not at all (the friction of
+    /// the library), or as one of the fluid's shapes it must beat ([`FrictionScale`]).
+    pub friction_scaled: FrictionScale,
+}
+
+/// The seal friction's step `F_c s`, or the same step following one of the fluid's own
+/// coefficients at the local current: the alternatives a current-independent friction
+/// without a resolved presliding displacement must beat, since a force step near reversal
+/// that follows the fluid at every current is the fluid's shape, not a seal.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum FrictionScale {
+    /// `F_c s`: a seal's, the same at every current.
+    #[default]
+    Constant,
+    /// `F_c (F_y(I)/F̄_y) s` (F̄_y the knots' mean): a yield step sharper than the
+    /// baseline's softened one.
+    Yield,
+    /// `F_c (c(I)/c̄) s` (c̄ the knots' mean): a steep rise at low speed that follows the
+    /// viscous coefficient, as a shear-thinning (Herschel–Bulkley, n < 1) or bi-viscous
+    /// fluid's does.
+    Viscous,
 }
 
 /// One named parameter.
@@ -315,6 +331,8 @@ fn evaluate_at(d: &Prepared, inp: &Channels, lay: &Layout, theta: &[f64], jac: b
     let comp = icp.map(|k| theta[k].max(0.0)).unwrap_or(0.0);
     let mut i_eff = inp.i[0];
     let fy_ref = (theta[..nk].iter().map(|x| x.max(FY_MIN)).sum::<f64>() / nk as f64).max(FY_MIN);
+    let c_ref =
+        (theta[nk..2 * nk].iter().map(|x| x.max(C_MIN)).sum::<f64>() / nk as f64).max(C_MIN);
     // Dahl friction state s ∈ [−1, 1] and ∂s/∂x_p.
     let (mut dahl_s, mut dahl_ds) = (0.0, 0.0);
     let mut di_dtau = 0.0;
@@ -490,27 +508,30 @@ fn evaluate_at(d: &Prepared, inp: &Channels, lay: &Layout, theta: &[f64], jac: b
                 dahl_s = sg;
                 dahl_ds = 0.0;
             }
-            // Scaled by the local yield force for the current-independence check.
-            let ratio = if lay.friction_scaled {
-                fy / fy_ref
-            } else {
-                1.0
+            // Scaled by a fluid coefficient for the current-independence check: the local
+            // value over the knots' mean, whose gradients (`g`, the knots' block from
+            // `base`, at the floor `floor`) it carries.
+            let scaled = match lay.friction_scaled {
+                FrictionScale::Constant => None,
+                FrictionScale::Yield => Some((fy, fy_ref, &gfy, 0, FY_MIN)),
+                FrictionScale::Viscous => Some((c, c_ref, &gc, nk, C_MIN)),
             };
+            let ratio = scaled.map_or(1.0, |(local, mean, ..)| local / mean);
             total += theta[q] * dahl_s * ratio;
             if jac {
                 jm[row + q] = dahl_s * ratio;
                 jm[row + q + 1] = theta[q] * dahl_ds * ratio;
-                if lay.friction_scaled {
-                    if fy > FY_MIN {
-                        for &(a, g) in &gfy {
-                            jm[row + a] += theta[q] * dahl_s / fy_ref * g;
+                if let Some((local, mean, grads, base, floor)) = scaled {
+                    if local > floor {
+                        for &(a, g) in grads {
+                            jm[row + a] += theta[q] * dahl_s / mean * g;
                         }
                     }
-                    // F̄_y moves with every knot.
-                    let dref = theta[q] * dahl_s * ratio / (fy_ref * nk as f64);
-                    for (a, th) in theta[..nk].iter().enumerate() {
-                        if *th > FY_MIN {
-                            jm[row + a] -= dref;
+                    // The mean moves with every knot.
+                    let dref = theta[q] * dahl_s * ratio / (mean * nk as f64);
+                    for (a, th) in theta[base..base + nk].iter().enumerate() {
+                        if *th > floor {
+                            jm[row + base + a] -= dref;
                         }
                     }
                 }
@@ -1070,7 +1091,7 @@ fn baseline_start(d: &Prepared) -> (Layout, Vec<f64>) {
             nk,
             effects: Vec::new(),
             soft: false,
-            friction_scaled: false,
+            friction_scaled: FrictionScale::Constant,
         },
         theta,
     )
@@ -1107,7 +1128,7 @@ mod tests {
             nk: d.knots.len(),
             effects: vec![],
             soft: true,
-            friction_scaled: false,
+            friction_scaled: FrictionScale::Constant,
         };
         let th = vec![
             250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 0.0, 0.004, 0.0, 0.0, 0.0, 0.0, 0.0,
@@ -1123,7 +1144,7 @@ mod tests {
             nk: d.knots.len(),
             effects: Effect::ALL.to_vec(),
             soft: true,
-            friction_scaled: false,
+            friction_scaled: FrictionScale::Constant,
         };
         // knots' F_y and c, offset, leak, relative leak, yield softness, knots' c₂
         let mut theta = vec![
@@ -1133,8 +1154,12 @@ mod tests {
         // lag 8 ms, inertia (ALL order)
         theta.extend([5e-8, 800.0, 15.0, 2e-4, 0.05, 0.008, 0.5]);
         assert_eq!(theta.len(), lay.len());
-        // The library's friction and the one scaled by the yield force.
-        for scaled in [false, true] {
+        // The library's friction and the ones scaled by the yield force and the viscosity.
+        for scaled in [
+            FrictionScale::Constant,
+            FrictionScale::Yield,
+            FrictionScale::Viscous,
+        ] {
             let lay = Layout {
                 friction_scaled: scaled,
                 ..lay.clone()
