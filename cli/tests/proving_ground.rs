@@ -123,6 +123,25 @@ fn generate_and_diagnose(seed: u32) -> (serde_json::Value, serde_json::Value) {
     (read_json(&meta), read_json(&json))
 }
 
+/// [`generate_and_diagnose`] for a scenario that must be a null (nothing hidden).
+fn generate_null_and_diagnose(seed: u32) -> (serde_json::Value, serde_json::Value) {
+    let (m, d) = generate_and_diagnose(seed);
+    assert!(
+        m["hidden"].as_array().unwrap().is_empty(),
+        "seed {seed} is a null"
+    );
+    (m, d)
+}
+
+/// A null's diagnosis reports no finding.
+fn assert_reports_nothing(seed: u32, d: &serde_json::Value) {
+    assert!(
+        d["findings"].as_array().unwrap().is_empty(),
+        "seed {seed}: false findings on a null: {}",
+        d["findings"]
+    );
+}
+
 /// A bi-viscous fluid whose pre-yield ramp spans half the stroke (proving-ground null
 /// seed 54: viscosity ratio 495, a civil damper whose force is a steep line up to
 /// 18 kN at 28 mm/s and nearly flat above it, 43 mm/s peak). The baseline's relative leak
@@ -134,12 +153,7 @@ fn generate_and_diagnose(seed: u32) -> (serde_json::Value, serde_json::Value) {
 /// strokes at 1.0 A).
 #[test]
 fn a_bi_viscous_fluid_below_yield_over_half_the_stroke_is_fitted_to_the_noise() {
-    let (m, d) = generate_and_diagnose(54);
-    assert_eq!(
-        m["hidden"].as_array().unwrap().len(),
-        0,
-        "seed 54 is a null"
-    );
+    let (m, d) = generate_null_and_diagnose(54);
     assert_eq!(m["fluid"]["law"], "biviscous", "the scenario changed");
     let sigma_f = m["sigma_F_N"].as_f64().unwrap();
     let held_out = d["baseline"]["holdout_rmse_N"].as_f64().unwrap();
@@ -159,11 +173,7 @@ fn a_bi_viscous_fluid_below_yield_over_half_the_stroke_is_fitted_to_the_noise() 
         (0.9 * truth..=1.1 * truth).contains(&lambda),
         "relative leak {lambda} against the fluid's 1/ratio {truth}"
     );
-    assert!(
-        d["findings"].as_array().unwrap().is_empty(),
-        "false findings on a null: {}",
-        d["findings"]
-    );
+    assert_reports_nothing(54, &d);
 }
 
 /// A bi-viscous null (proving-ground seed 200: viscosity ratio 265, a random current)
@@ -173,17 +183,9 @@ fn a_bi_viscous_fluid_below_yield_over_half_the_stroke_is_fitted_to_the_noise() 
 /// so it is the fluid's shape: nothing is reported, and the final model carries it.
 #[test]
 fn a_bi_viscous_rise_at_low_speed_is_the_fluids_shape_not_a_seal() {
-    let (m, d) = generate_and_diagnose(200);
-    assert!(
-        m["hidden"].as_array().unwrap().is_empty(),
-        "seed 200 is a null"
-    );
+    let (m, d) = generate_null_and_diagnose(200);
     assert_eq!(m["fluid"]["law"], "biviscous", "the scenario changed");
-    assert!(
-        d["findings"].as_array().unwrap().is_empty(),
-        "false findings on a null: {}",
-        d["findings"]
-    );
+    assert_reports_nothing(200, &d);
     let shape = d["fluid_shape"].as_array().unwrap();
     assert!(
         shape
@@ -213,11 +215,7 @@ fn a_bi_viscous_rise_at_low_speed_is_the_fluids_shape_not_a_seal() {
 #[test]
 fn current_steps_and_noise_are_modelled_and_no_lag_is_made_of_them() {
     for (seed, steps, within) in [(77, 30, 2.2), (131, 3, 1.15), (213, 14, 1.5)] {
-        let (m, d) = generate_and_diagnose(seed);
-        assert!(
-            m["hidden"].as_array().unwrap().is_empty(),
-            "seed {seed} is a null"
-        );
+        let (m, d) = generate_null_and_diagnose(seed);
         let cur = &d["measurement"]["current"];
         let sigma_i = m["measurement"]["sigma_I_A"].as_f64().unwrap();
         let noise = cur["noise_a"].as_f64().unwrap();
@@ -242,11 +240,7 @@ fn current_steps_and_noise_are_modelled_and_no_lag_is_made_of_them() {
             "seed {seed}: baseline held-out {:.2} σ_F",
             held_out / sigma_f
         );
-        assert!(
-            d["findings"].as_array().unwrap().is_empty(),
-            "seed {seed}: false findings on a null: {}",
-            d["findings"]
-        );
+        assert_reports_nothing(seed, &d);
     }
 }
 

@@ -85,6 +85,14 @@ pub struct CurrentStep {
     pub midpoint_s: f64,
 }
 
+impl CurrentStep {
+    /// The samples a step's response is fitted to: its transition and two samples either
+    /// side (of a record of `n` samples).
+    fn fitted_samples(&self, n: usize) -> std::ops::RangeInclusive<usize> {
+        self.before.saturating_sub(2)..=(self.after + 2).min(n - 1)
+    }
+}
+
 /// The current channel as conditioned.
 #[derive(Debug, Clone, Default)]
 pub struct CurrentChannel {
@@ -138,8 +146,9 @@ fn noise_sigma(i: &[f64], h: &[f64]) -> f64 {
 
 impl CurrentChannel {
     /// Find the plateaus and steps of the recorded current `i` (`h[j]` the step to the
-    /// previous sample, 0 at a time gap).
-    pub fn condition(t: &[f64], h: &[f64], i: &[f64]) -> Self {
+    /// previous sample, 0 at a time gap), and the cut-off they show at the record's sample
+    /// interval `dt` ([`CurrentChannel::cutoff_from_steps`]).
+    pub fn condition(t: &[f64], h: &[f64], i: &[f64], dt: f64) -> Self {
         let n = i.len();
         let scale = i.iter().fold(0.0f64, |m, x| m.max(x.abs()));
         // A quantised or noise-free channel: a floor of 1e-6 of the range (and 1 µA).
@@ -237,10 +246,7 @@ impl CurrentChannel {
             steps,
             cutoff: None,
         };
-        let mut dts: Vec<f64> = h.iter().copied().filter(|&x| x > 0.0).collect();
-        if let Some(dt) = numerics::stats::median(&mut dts) {
-            channel.cutoff = channel.cutoff_from_steps(t, dt);
-        }
+        channel.cutoff = channel.cutoff_from_steps(t, dt);
         channel
     }
 
@@ -330,7 +336,7 @@ impl CurrentChannel {
         let best = sse(fc);
         let dof = steps
             .iter()
-            .map(|s| (s.after + 2).min(t.len() - 1) - s.before.saturating_sub(2) + 1)
+            .map(|s| s.fitted_samples(t.len()).count())
             .sum::<usize>()
             .saturating_sub(steps.len() + 1)
             .max(1);
@@ -367,9 +373,7 @@ impl CurrentChannel {
     /// Squared misfit of step `s` at time `ts` under a Butterworth of cut-off `fc` over its
     /// transition and two samples either side.
     fn step_sse(&self, s: &CurrentStep, t: &[f64], fc: f64, ts: f64) -> f64 {
-        let lo_k = s.before.saturating_sub(2);
-        let hi_k = (s.after + 2).min(t.len() - 1);
-        (lo_k..=hi_k)
+        s.fitted_samples(t.len())
             .map(|q| {
                 let y = s.from_a + (s.to_a - s.from_a) * butterworth2_step(t[q] - ts, fc);
                 (self.raw[q] - y).powi(2)
@@ -443,7 +447,7 @@ mod tests {
     #[test]
     fn plateaus_take_their_level_and_steps_their_true_time() {
         let (t, h, i, truth) = record(3e-3);
-        let c = CurrentChannel::condition(&t, &h, &i);
+        let c = CurrentChannel::condition(&t, &h, &i, 1e-3);
         assert!((c.noise_a / 3e-3 - 1.0).abs() < 0.1, "σ_I {}", c.noise_a);
         assert_eq!(c.steps.len(), 3, "{:?}", c.steps);
         assert_eq!(c.plateaus.len(), 4);
@@ -480,7 +484,7 @@ mod tests {
         // Three steps of 0.5–1.2 A through 300 Hz (0.3 f_s) with 3 mA of noise: the
         // cut-off comes back within 2 % and within three of its standard errors.
         let (t, h, i, _) = record(3e-3);
-        let c = CurrentChannel::condition(&t, &h, &i);
+        let c = CurrentChannel::condition(&t, &h, &i, 1e-3);
         let est = c.cutoff.expect("three steps of 170-400 σ_I");
         assert_eq!(est.steps, 3);
         assert!(
@@ -507,11 +511,11 @@ mod tests {
                 }
             })
             .collect();
-        let c = CurrentChannel::condition(&t, &h, &coil);
+        let c = CurrentChannel::condition(&t, &h, &coil, 1e-3);
         assert_eq!(c.steps.len(), 1);
         assert_eq!(c.front_end_cutoff_hz(), None, "{:?}", c.cutoff);
         // The Butterworth record's is taken.
-        let c = CurrentChannel::condition(&t, &h, &i);
+        let c = CurrentChannel::condition(&t, &h, &i, 1e-3);
         assert_eq!(c.front_end_cutoff_hz(), Some(c.cutoff.unwrap().cutoff_hz));
     }
 
@@ -522,7 +526,7 @@ mod tests {
         let t: Vec<f64> = (0..n).map(|k| k as f64 * 5e-3).collect();
         let h: Vec<f64> = (0..n).map(|k| if k == 0 { 0.0 } else { 5e-3 }).collect();
         let i: Vec<f64> = (0..n).map(|k| if k < 200 { 0.25 } else { 0.5 }).collect();
-        let c = CurrentChannel::condition(&t, &h, &i);
+        let c = CurrentChannel::condition(&t, &h, &i, 5e-3);
         assert_eq!(c.plateaus.len(), 2);
         assert_eq!((c.plateaus[0].0.end, c.plateaus[1].0.start), (200, 200));
         assert!(c.steps.is_empty());
@@ -537,7 +541,7 @@ mod tests {
         let t: Vec<f64> = (0..n).map(|k| k as f64 * 1e-3).collect();
         let h: Vec<f64> = (0..n).map(|k| if k == 0 { 0.0 } else { 1e-3 }).collect();
         let i: Vec<f64> = t.iter().map(|x| 1.0 + 0.5 * (6.0 * x).sin()).collect();
-        let c = CurrentChannel::condition(&t, &h, &i);
+        let c = CurrentChannel::condition(&t, &h, &i, 1e-3);
         let p = c.place(&t, &h, None);
         // A smooth sweep is "stable" sample to sample but drifts: no plateau keeps it.
         assert!(c.plateaus.is_empty(), "{:?}", c.plateaus.len());

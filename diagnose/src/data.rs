@@ -666,10 +666,15 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
     let x = s.displacement_m.clone();
     let f = s.force_n.clone();
     let h = steps(&t);
-    let current = crate::current::CurrentChannel::condition(&t, &h, &s.current_a);
+    let m = crate::measure::measure(&t, &x, &s.velocity_m_s, &f, &h, s.velocity_derived);
+    let current = crate::current::CurrentChannel::condition(
+        &t,
+        &h,
+        &s.current_a,
+        m.summary.sample_interval_s,
+    );
     let placed = current.place(&t, &h, None);
     let i = placed.i;
-    let m = crate::measure::measure(&t, &x, &s.velocity_m_s, &f, &h, s.velocity_derived);
     let v = m.v;
     let a = m.a;
     let vpeak = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));

@@ -46,7 +46,7 @@ pub struct Layout {
     pub soft: bool,
     /// How the seal friction's step scales with the current: not at all (the friction of
     /// the library), or as one of the fluid's shapes it must beat ([`FrictionScale`]).
-    pub friction_scaled: FrictionScale,
+    pub friction_scale: FrictionScale,
 }
 
 /// The seal friction's step `F_c s`, or the same step following one of the fluid's own
@@ -511,7 +511,7 @@ fn evaluate_at(d: &Prepared, inp: &Channels, lay: &Layout, theta: &[f64], jac: b
             // Scaled by a fluid coefficient for the current-independence check: the local
             // value over the knots' mean, whose gradients (`g`, the knots' block from
             // `base`, at the floor `floor`) it carries.
-            let scaled = match lay.friction_scaled {
+            let scaled = match lay.friction_scale {
                 FrictionScale::Constant => None,
                 FrictionScale::Yield => Some((fy, fy_ref, &gfy, 0, FY_MIN)),
                 FrictionScale::Viscous => Some((c, c_ref, &gc, nk, C_MIN)),
@@ -1091,7 +1091,7 @@ fn baseline_start(d: &Prepared) -> (Layout, Vec<f64>) {
             nk,
             effects: Vec::new(),
             soft: false,
-            friction_scaled: FrictionScale::Constant,
+            friction_scale: FrictionScale::Constant,
         },
         theta,
     )
@@ -1128,7 +1128,7 @@ mod tests {
             nk: d.knots.len(),
             effects: vec![],
             soft: true,
-            friction_scaled: FrictionScale::Constant,
+            friction_scale: FrictionScale::Constant,
         };
         let th = vec![
             250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 0.0, 0.004, 0.0, 0.0, 0.0, 0.0, 0.0,
@@ -1144,7 +1144,7 @@ mod tests {
             nk: d.knots.len(),
             effects: Effect::ALL.to_vec(),
             soft: true,
-            friction_scaled: FrictionScale::Constant,
+            friction_scale: FrictionScale::Constant,
         };
         // knots' F_y and c, offset, leak, relative leak, yield softness, knots' c₂
         let mut theta = vec![
@@ -1161,7 +1161,7 @@ mod tests {
             FrictionScale::Viscous,
         ] {
             let lay = Layout {
-                friction_scaled: scaled,
+                friction_scale: scaled,
                 ..lay.clone()
             };
             check_jacobian(&d, &lay, &theta);

@@ -1056,7 +1056,7 @@ fn forward_selection(
                 .find_map(|v| v.judged.fluid_shape.as_ref());
             let Some(shape) = shape else { break };
             let k = shape.layout.index(Effect::SealFriction).unwrap_or(0);
-            let (at, what) = match shape.layout.friction_scaled {
+            let (at, what) = match shape.layout.friction_scale {
                 FrictionScale::Viscous => (
                     "viscous coefficient",
                     "a steep rise of the force at low speed, as a shear-thinning or bi-viscous \
@@ -1468,7 +1468,7 @@ pub fn diagnose_with_progress(
             .iter()
             .copied()
             .filter(|e| {
-                !(current.layout.friction_scaled != FrictionScale::Constant
+                !(current.layout.friction_scale != FrictionScale::Constant
                     && *e == Effect::SealFriction)
             })
             .collect(),
@@ -1524,7 +1524,7 @@ fn fluid_shape_step(d: &Prepared, cand: &Fit) -> Option<Fit> {
         .into_iter()
         .map(|scale| {
             let lay = Layout {
-                friction_scaled: scale,
+                friction_scale: scale,
                 ..cand.layout.clone()
             };
             crate::model::fit_limited(d, &lay, &cand.theta, 20)
