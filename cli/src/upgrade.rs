@@ -9,7 +9,7 @@
 
 use std::path::{Path, PathBuf};
 
-use ::diagnose::report::Parameter;
+use ::diagnose::report::{FluidShape, Parameter, ShapeFollows};
 use ::diagnose::Diagnosis;
 use anyhow::{bail, Result};
 use node::conditioning::SensorSample;
@@ -26,6 +26,20 @@ use crate::fit::{calibrate_with_leak_trial, write_twin_file, TwinSection};
 /// the record's peak speed (the first, 1 %, is also the start of every other upgrade;
 /// docs/fit.md gives the profile on the UTFSM records).
 pub const FRICTION_WIDTHS: [f64; 2] = [0.01, 0.10];
+
+/// Where the fit starts the fluid's yield-step width, as a share of the record's peak speed.
+/// Unlike the friction's, the width is fitted (`fluid.yield_step_velocity_m_s`): on the
+/// UTFSM records it converges to the same 13 mm/s from 1 and 6 mm/s (docs/fit.md).
+pub const YIELD_STEP_WIDTH_START: f64 = 0.10;
+
+/// The fluid's shape the twin can carry: a step that follows the yield force
+/// (`fluid.yield_step_share`). A step that follows the viscous coefficient has no
+/// counterpart in the twin's fluid laws and is not carried.
+fn yield_step(shapes: &[FluidShape]) -> Option<&FluidShape> {
+    shapes
+        .iter()
+        .find(|s| s.follows == ShapeFollows::YieldForce && s.share > 0.0)
+}
 
 /// The SI value of an effect's single parameter in a diagnose finding.
 fn si_value(e: Effect, parameters: &std::collections::BTreeMap<String, Parameter>) -> Option<f64> {
@@ -121,7 +135,18 @@ pub fn write_upgraded(
             Some((e, si_value(e, &f.parameters)?))
         })
         .collect();
-    let added: Vec<&str> = found.iter().map(|(e, _)| e.id()).collect();
+    let step = yield_step(&dg.report.fluid_shape);
+    let mut added: Vec<&str> = found.iter().map(|(e, _)| e.id()).collect();
+    if step.is_some() {
+        added.push("the fluid's yield step");
+    }
+    let not_carried: Vec<&str> = dg
+        .report
+        .fluid_shape
+        .iter()
+        .filter(|s| s.follows == ShapeFollows::ViscousCoefficient)
+        .map(|s| s.explanation.as_str())
+        .collect();
     let (b, f) = (
         dg.report.baseline.holdout_rmse_unweighted_n,
         dg.report.final_model.holdout_rmse_unweighted_n,
@@ -139,6 +164,7 @@ pub fn write_upgraded(
         "diagnose_holdout_ratio": f / b,
         "diagnose_explained_variance_N2": explained,
         "predicted_replay_ratio": claim,
+        "fluid_shape_not_carried": not_carried,
     });
     let Some(out) = out else {
         return Ok(TwinCheck {
@@ -153,7 +179,7 @@ pub fn write_upgraded(
             up_rmse / twin_rmse
         ))
     };
-    if found.is_empty() {
+    if added.is_empty() {
         write_twin_file(
             out,
             &format!(
@@ -177,8 +203,8 @@ pub fn write_upgraded(
     }
     if config.model != ModelKind::TwoChamber {
         bail!(
-            "--write-params: the twin's model '{}' takes no effects; fit a two-chamber twin \
-             (mrtwin fit --model two-chamber) to add {}",
+            "--write-params: the twin's model '{}' takes no effects and no yield step; fit a \
+             two-chamber twin (mrtwin fit --model two-chamber) to add {}",
             config.model,
             added.join(", ")
         );
@@ -214,6 +240,12 @@ pub fn write_upgraded(
                 share * peak_speed,
                 effects.has(Effect::GasSpring),
             );
+        }
+        if let Some(st) = step {
+            // diagnose's F_c F_y(I)/F̄_y tanh(v/v_s) is β F_y(I) tanh(v/v_s): β = F_c/F̄_y.
+            upgraded.two_chamber.fluid.yield_step_share = st.share;
+            upgraded.two_chamber.fluid.yield_step_velocity_m_s =
+                (YIELD_STEP_WIDTH_START * peak_speed).max(1e-6);
         }
         let up_config = PipelineConfig {
             params: upgraded,

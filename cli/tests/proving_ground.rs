@@ -188,9 +188,11 @@ fn a_bi_viscous_rise_at_low_speed_is_the_fluids_shape_not_a_seal() {
     assert_reports_nothing(200, &d);
     let shape = d["fluid_shape"].as_array().unwrap();
     assert!(
-        shape
-            .iter()
-            .any(|s| s.as_str().unwrap().contains("viscous coefficient")),
+        shape.iter().any(|s| s["follows"] == "viscous_coefficient"
+            && s["explanation"]
+                .as_str()
+                .unwrap()
+                .contains("viscous coefficient")),
         "no viscosity-scaled step in the fluid's shape: {shape:?}"
     );
     // Carried for prediction, it must predict the held-out blocks better.

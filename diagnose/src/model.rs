@@ -302,6 +302,17 @@ pub fn evaluate(d: &Prepared, lay: &Layout, theta: &[f64], jac: bool) -> Evaluat
     }
 }
 
+/// The mean over the `nk` current knots of the coefficient a scaled friction step follows
+/// (F̄_y for [`FrictionScale::Yield`] and `Constant`, c̄ for `Viscous`), each knot at its
+/// floor: what the step divides the local coefficient by.
+pub fn knot_mean(theta: &[f64], nk: usize, scale: FrictionScale) -> f64 {
+    let (xs, floor) = match scale {
+        FrictionScale::Viscous => (&theta[nk..2 * nk], C_MIN),
+        _ => (&theta[..nk], FY_MIN),
+    };
+    (xs.iter().map(|x| x.max(floor)).sum::<f64>() / nk as f64).max(floor)
+}
+
 /// The model at every point of `inp`, before any filter.
 // Several per-point arrays are read and written with one index: a range loop is clearer.
 #[allow(clippy::needless_range_loop)]
@@ -330,9 +341,8 @@ fn evaluate_at(d: &Prepared, inp: &Channels, lay: &Layout, theta: &[f64], jac: b
     let tau = ilag.map(|k| theta[k].max(0.0)).unwrap_or(0.0);
     let comp = icp.map(|k| theta[k].max(0.0)).unwrap_or(0.0);
     let mut i_eff = inp.i[0];
-    let fy_ref = (theta[..nk].iter().map(|x| x.max(FY_MIN)).sum::<f64>() / nk as f64).max(FY_MIN);
-    let c_ref =
-        (theta[nk..2 * nk].iter().map(|x| x.max(C_MIN)).sum::<f64>() / nk as f64).max(C_MIN);
+    let fy_ref = knot_mean(theta, nk, FrictionScale::Yield);
+    let c_ref = knot_mean(theta, nk, FrictionScale::Viscous);
     // Dahl friction state s ∈ [−1, 1] and ∂s/∂x_p.
     let (mut dahl_s, mut dahl_ds) = (0.0, 0.0);
     let mut di_dtau = 0.0;

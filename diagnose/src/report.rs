@@ -125,6 +125,45 @@ pub struct Unexplained {
     pub correlates_with: Vec<String>,
 }
 
+/// Which of the fluid's coefficients a step at reversal follows ([`FluidShape`]).
+#[derive(Debug, Clone, Copy, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum ShapeFollows {
+    /// The yield force F_y(I): a yield sharper than the baseline's slit law.
+    YieldForce,
+    /// The viscous coefficient c(I): a steep rise at low speed (shear thinning,
+    /// bi-viscous).
+    ViscousCoefficient,
+}
+
+/// A step at each velocity reversal that follows one of the fluid's coefficients at every
+/// current, taken up by the final model as the fluid's own shape (not a finding): the
+/// seal-friction candidate's step, which fitted better scaled by the fluid and showed no
+/// presliding. `step_N · coefficient(I) / mean_coefficient · tanh(v / tanh_velocity)`.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct FluidShape {
+    /// What the step follows.
+    pub follows: ShapeFollows,
+    /// The step at the mean coefficient \[N\].
+    #[serde(rename = "step_N")]
+    pub step_n: f64,
+    /// The mean of the coefficient over the current knots (F_y \[N\] or c \[N s/m\]).
+    pub mean_coefficient: f64,
+    /// The step's share of the coefficient, `step_N / mean_coefficient` (\[1\] for the yield
+    /// force, \[m/s\] for the viscous coefficient).
+    pub share: f64,
+    /// Velocity scale of the step's tanh \[m/s\].
+    pub tanh_velocity_m_s: f64,
+    /// Held-out RMS before \[N\].
+    #[serde(rename = "holdout_rmse_before_N")]
+    pub holdout_rmse_before_n: f64,
+    /// Held-out RMS with the step \[N\].
+    #[serde(rename = "holdout_rmse_after_N")]
+    pub holdout_rmse_after_n: f64,
+    /// The same in words (the report's line).
+    pub explanation: String,
+}
+
 /// Explanations the data cannot tell apart.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct Undecided {
@@ -250,7 +289,7 @@ pub struct Report {
     pub withdrawn: Vec<String>,
     /// Structure the fluid's own shape took up in the final model (a step near reversal
     /// that follows the yield force): not findings, no effect of the library.
-    pub fluid_shape: Vec<String>,
+    pub fluid_shape: Vec<FluidShape>,
     /// Structure the final model leaves beyond noise (empty when the residual is noise).
     pub unexplained: Vec<Unexplained>,
     /// Every candidate tried.
@@ -360,7 +399,7 @@ pub fn render_markdown(r: &Report) -> String {
         let _ = writeln!(s, "- withdrawn: {w}");
     }
     for w in &r.fluid_shape {
-        let _ = writeln!(s, "- the fluid's shape (not a finding): {w}");
+        let _ = writeln!(s, "- the fluid's shape (not a finding): {}", w.explanation);
     }
     if !r.unexplained.is_empty() {
         let _ = writeln!(s, "\n## Unexplained\n");

@@ -936,7 +936,7 @@ fn round_verdicts(
 struct Selection {
     current: Fit,
     /// What the fluid's shape took up (not findings).
-    fluid_shape: Vec<String>,
+    fluid_shape: Vec<FluidShape>,
     accepted: Vec<(Effect, Evidence, Vec<BlockGain>)>,
     undecided: Vec<Undecided>,
     undecided_effects: Vec<Effect>,
@@ -1056,26 +1056,39 @@ fn forward_selection(
                 .find_map(|v| v.judged.fluid_shape.as_ref());
             let Some(shape) = shape else { break };
             let k = shape.layout.index(Effect::SealFriction).unwrap_or(0);
-            let (at, what) = match shape.layout.friction_scale {
+            let nk = shape.layout.nk;
+            let (follows, at, what) = match shape.layout.friction_scale {
                 FrictionScale::Viscous => (
+                    ShapeFollows::ViscousCoefficient,
                     "viscous coefficient",
                     "a steep rise of the force at low speed, as a shear-thinning or bi-viscous \
                      fluid has",
                 ),
                 _ => (
+                    ShapeFollows::YieldForce,
                     "yield force",
                     "a yield step sharper than the baseline fluid's",
                 ),
             };
-            sel.fluid_shape.push(format!(
-                "a step of {:.1} N at the mean {at} (scaled by the {at} at every current) at \
-                 each velocity reversal, {what}: the seal_friction candidate's step, which \
-                 follows the {at} (it fits better scaled by it) and shows no presliding, so \
-                 the fluid's shape and not a seal; held-out RMS {:.2} → {:.2} N",
-                shape.theta[k],
-                sel.current.holdout_rmse(d),
-                shape.holdout_rmse(d)
-            ));
+            let mean = crate::model::knot_mean(&shape.theta, nk, shape.layout.friction_scale);
+            let (before, after) = (sel.current.holdout_rmse(d), shape.holdout_rmse(d));
+            sel.fluid_shape.push(FluidShape {
+                follows,
+                step_n: shape.theta[k],
+                mean_coefficient: mean,
+                share: shape.theta[k] / mean,
+                tanh_velocity_m_s: d.friction_velocity,
+                holdout_rmse_before_n: before,
+                holdout_rmse_after_n: after,
+                explanation: format!(
+                    "a step of {:.1} N at the mean {at} (scaled by the {at} at every current) \
+                     at each velocity reversal, {what}: the seal_friction candidate's step, \
+                     which follows the {at} (it fits better scaled by it) and shows no \
+                     presliding, so the fluid's shape and not a seal; held-out RMS {before:.2} \
+                     → {after:.2} N",
+                    shape.theta[k],
+                ),
+            });
             sel.current = shape.clone();
             remaining.retain(|x| *x != Effect::SealFriction);
             continue;

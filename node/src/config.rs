@@ -214,13 +214,23 @@ impl TwinNodeParams {
                 ),
             });
         }
-        let leak = self.two_chamber.fluid.pre_yield_leak;
-        if !(leak >= 0.0 && leak.is_finite()) {
-            return Err(InvalidParam {
-                key: "two_chamber.fluid.pre_yield_leak",
-                reason: format!("must be a number >= 0, got {leak}"),
-            });
-        }
+        let non_negative = |key: &'static str, v: f64| {
+            if v >= 0.0 && v.is_finite() {
+                Ok(())
+            } else {
+                Err(InvalidParam {
+                    key,
+                    reason: format!("must be a number >= 0, got {v}"),
+                })
+            }
+        };
+        let fluid = &self.two_chamber.fluid;
+        non_negative("two_chamber.fluid.pre_yield_leak", fluid.pre_yield_leak)?;
+        non_negative("two_chamber.fluid.yield_step_share", fluid.yield_step_share)?;
+        positive(
+            "two_chamber.fluid.yield_step_velocity_m_s",
+            fluid.yield_step_velocity_m_s,
+        )?;
         if self.conditioning.stuck_samples < 2 {
             return Err(InvalidParam {
                 key: "conditioning.stuck_samples",
@@ -325,6 +335,20 @@ mod tests {
                 assert!(e.contains(w), "{w} not in: {e}");
             }
         }
+    }
+
+    #[test]
+    fn a_negative_yield_step_or_a_zero_step_velocity_is_refused_by_its_key() {
+        let p = parse("    two_chamber:\n      fluid:\n        yield_step_share: -0.1\n").unwrap();
+        let e = p.validate().unwrap_err();
+        assert_eq!(e.key, "two_chamber.fluid.yield_step_share");
+        let p =
+            parse("    two_chamber:\n      fluid:\n        yield_step_velocity_m_s: 0\n").unwrap();
+        let e = p.validate().unwrap_err();
+        assert_eq!(e.key, "two_chamber.fluid.yield_step_velocity_m_s");
+        let p = parse("    two_chamber:\n      fluid:\n        yield_step_share: 0.2\n").unwrap();
+        p.validate().unwrap();
+        assert_eq!(p.two_chamber.fluid.yield_step_share, 0.2);
     }
 
     #[test]

@@ -45,6 +45,10 @@ pub enum ParamKey {
     FlowIndex,
     /// `two_chamber.fluid.pre_yield_leak` (fitted when the base file gives one).
     PreYieldLeak,
+    /// `two_chamber.fluid.yield_step_share` (fitted when the base file gives one).
+    YieldStepShare,
+    /// `two_chamber.fluid.yield_step_velocity_m_s` (fitted with the yield step).
+    YieldStepVelocity,
     /// `two_chamber.load_cell_offset_n`.
     LoadCellOffset,
     /// `two_chamber.bulk_modulus_pa` (`fluid_compressibility`).
@@ -75,6 +79,8 @@ impl ParamKey {
             ParamKey::Viscosity(k) => format!("two_chamber.fluid.viscosity_pa_s[{k}]"),
             ParamKey::FlowIndex => "two_chamber.fluid.flow_index".into(),
             ParamKey::PreYieldLeak => "two_chamber.fluid.pre_yield_leak".into(),
+            ParamKey::YieldStepShare => "two_chamber.fluid.yield_step_share".into(),
+            ParamKey::YieldStepVelocity => "two_chamber.fluid.yield_step_velocity_m_s".into(),
             ParamKey::LoadCellOffset => "two_chamber.load_cell_offset_n".into(),
             ParamKey::BulkModulus => "two_chamber.bulk_modulus_pa".into(),
             ParamKey::GasVolume => "two_chamber.gas_volume_m3".into(),
@@ -98,6 +104,8 @@ impl ParamKey {
             ParamKey::Viscosity(k) => t.fluid.viscosity_pa_s[k],
             ParamKey::FlowIndex => t.fluid.flow_index,
             ParamKey::PreYieldLeak => t.fluid.pre_yield_leak,
+            ParamKey::YieldStepShare => t.fluid.yield_step_share,
+            ParamKey::YieldStepVelocity => t.fluid.yield_step_velocity_m_s,
             ParamKey::LoadCellOffset => t.load_cell_offset_n,
             ParamKey::BulkModulus => t.bulk_modulus_pa,
             ParamKey::GasVolume => t.gas_volume_m3,
@@ -121,6 +129,8 @@ impl ParamKey {
             ParamKey::Viscosity(k) => t.fluid.viscosity_pa_s[k] = v,
             ParamKey::FlowIndex => t.fluid.flow_index = v,
             ParamKey::PreYieldLeak => t.fluid.pre_yield_leak = v,
+            ParamKey::YieldStepShare => t.fluid.yield_step_share = v,
+            ParamKey::YieldStepVelocity => t.fluid.yield_step_velocity_m_s = v,
             ParamKey::LoadCellOffset => t.load_cell_offset_n = v,
             ParamKey::BulkModulus => t.bulk_modulus_pa = v,
             ParamKey::GasVolume => t.gas_volume_m3 = v,
@@ -138,6 +148,8 @@ impl ParamKey {
             self,
             ParamKey::FlowIndex
                 | ParamKey::PreYieldLeak
+                | ParamKey::YieldStepShare
+                | ParamKey::YieldStepVelocity
                 | ParamKey::BulkModulus
                 | ParamKey::GasVolume
                 | ParamKey::SealFriction
@@ -194,6 +206,10 @@ pub fn free_parameters(
             }
             if params.two_chamber.fluid.pre_yield_leak > 0.0 {
                 keys.push(ParamKey::PreYieldLeak);
+            }
+            if params.two_chamber.fluid.yield_step_share > 0.0 {
+                keys.push(ParamKey::YieldStepShare);
+                keys.push(ParamKey::YieldStepVelocity);
             }
             keys.push(ParamKey::LoadCellOffset);
             for e in effects.iter() {

@@ -94,6 +94,37 @@ fn incompressible_model_is_the_analytic_bingham_damper() {
     }
 }
 
+/// The fluid's yield step (`fluid.yield_step_share` β): the analytic damper plus
+/// β A1 (2 τ_y(I) L/h) tanh(v/v_s), at two currents, so the step follows the yield stress.
+#[test]
+fn the_yield_step_adds_a_share_of_the_yield_force_that_follows_the_current() {
+    let mut params = TwoChamberParams::default();
+    params.fluid.yield_step_share = 0.2;
+    params.fluid.yield_step_velocity_m_s = 2e-3;
+    let effects = EffectSet::NONE.with(Effect::GasSpring);
+    for current in [0.3, 1.0] {
+        let mut m = TwoChamber::new(params.clone(), effects);
+        let s = run(&mut m, &programme(0.01, 3.33, current, 0.6, 1000.0), None);
+        let tau_y = params.fluid.yield_stress_pa[0]
+            + params.fluid.yield_stress_pa[1] * current
+            + params.fluid.yield_stress_pa[2] * current * current;
+        let step_force = 0.2 * params.annulus_area() * 2.0 * tau_y * params.gap_active_length_m
+            / params.gap_height_m;
+        let pk = peak(&s);
+        for smp in &s {
+            let (x, v) = (smp.input.displacement_m, smp.input.velocity_m_s);
+            let expected = incompressible_bingham_force(&params, x, v, current)
+                + step_force * (v / 2e-3).tanh();
+            assert!(
+                (smp.output.force_n - expected).abs() < 1e-6 * pk,
+                "{current} A, t={}: {} vs {expected}",
+                smp.time_s,
+                smp.output.force_n
+            );
+        }
+    }
+}
+
 #[test]
 fn infinite_bulk_modulus_recovers_the_incompressible_damper() {
     let prog = programme(0.01, 3.33, 1.0, 0.9, 1000.0);
@@ -221,7 +252,14 @@ fn energy_dissipated_per_cycle_equals_the_loop_area() {
     let mut leaky = TwoChamberParams::default();
     leaky.fluid.pre_yield_leak = 0.05;
     assert_energy_balance(&mut TwoChamber::new(leaky.clone(), no_heat), 3.33, 0.01);
-    assert_energy_balance(&mut TwoChamber::new(leaky, EffectSet::NONE), 3.33, 0.01);
+    assert_energy_balance(
+        &mut TwoChamber::new(leaky.clone(), EffectSet::NONE),
+        3.33,
+        0.01,
+    );
+    // The yield step dissipates F_s v.
+    leaky.fluid.yield_step_share = 0.2;
+    assert_energy_balance(&mut TwoChamber::new(leaky, no_heat), 3.33, 0.01);
     let mut bp = TwoChamberParams::default();
     bp.fluid.law = FluidLaw::BodnerPartom;
     bp.gap_active_length_m = 0.004;

@@ -10,7 +10,8 @@
 //!   V2 = V20 + Ap x + Vg0 − Vg
 //! * gap flow Q(Δp), Δp = p1 − p2, from [`crate::gap`]: Bingham (blocked while
 //!   |Δp| ≤ 2 τ_y L/h), Herschel–Bulkley or Bodner–Partom (5.2)
-//! * rod force F = A1 p1 − Ap p2 (+ seal friction + fluid inertia); at rest F = −p0 Ar.
+//! * rod force F = A1 p1 − Ap p2 (+ seal friction + fluid inertia + the fluid's yield
+//!   step, [`FluidParams::yield_step_share`]); at rest F = −p0 Ar.
 //!
 //! Effects ([`EffectSet`]):
 //! * `fluid_compressibility` off: K = ∞, the model is algebraic: Q = A1 v, and with the gas
@@ -75,6 +76,15 @@ pub struct FluidParams {
     /// Herschel–Bulkley the consistency k(I, T) stands for μ; for Bodner–Partom, whose
     /// law does not use it, μ is the `viscosity_pa_s` polynomial.
     pub pre_yield_leak: f64,
+    /// Yield step β \[-\]: a share of the yield force reached as a step at flow start,
+    /// `F_s = β A1 Δp_y(I, T) tanh(v / v_s)` beside the slit law, whose own rise from the
+    /// yield point is a square root (Buckingham's slit equation). It follows the yield
+    /// stress at every current and temperature. A real fluid's yield at reversal is often
+    /// sharper than the slit law's; `mrtwin diagnose` finds it as the fluid's yield-scaled
+    /// step (its `fluid_shape`) and `--write-params` carries it here. 0: none.
+    pub yield_step_share: f64,
+    /// Velocity scale v_s of the yield step's tanh \[m/s\].
+    pub yield_step_velocity_m_s: f64,
 }
 
 impl Default for FluidParams {
@@ -90,6 +100,8 @@ impl Default for FluidParams {
             viscosity_temp_coeff_per_k: 0.02,
             reference_temperature_c: 25.0,
             pre_yield_leak: 0.0,
+            yield_step_share: 0.0,
+            yield_step_velocity_m_s: 1.0e-3,
         }
     }
 }
@@ -382,6 +394,20 @@ impl TwoChamber {
         }
     }
 
+    /// The fluid's yield step `β A1 Δp_y tanh(v / v_s)` ([`FluidParams::yield_step_share`])
+    /// with the flow law at the present current and temperature.
+    fn yield_step(&self, v: f64, flow: &SlitFlow) -> f64 {
+        let f = &self.params.fluid;
+        if f.yield_step_share > 0.0 {
+            f.yield_step_share
+                * self.params.annulus_area()
+                * flow.yield_pressure()
+                * (v / f.yield_step_velocity_m_s).tanh()
+        } else {
+            0.0
+        }
+    }
+
     fn flow(&self) -> SlitFlow {
         self.params.flow_at(self.current_eff, self.temperature_c)
     }
@@ -395,7 +421,7 @@ impl TwoChamber {
         } else {
             p.annulus_area() * inp.velocity_m_s
         };
-        let ff = self.seal_friction(inp.velocity_m_s);
+        let ff = self.seal_friction(inp.velocity_m_s) + self.yield_step(inp.velocity_m_s, flow);
         let inertia = if self.effects.has(Effect::FluidInertia) {
             p.fluid_mass_kg() * inp.acceleration_m_s2
         } else {
