@@ -136,9 +136,11 @@ pub fn write_upgraded(
         })
         .collect();
     let step = yield_step(&dg.report.fluid_shape);
-    let mut added: Vec<&str> = found.iter().map(|(e, _)| e.id()).collect();
+    // The effect ids added (JSON `added`), and what the upgrade adds in words.
+    let added: Vec<&str> = found.iter().map(|(e, _)| e.id()).collect();
+    let mut adds = added.clone();
     if step.is_some() {
-        added.push("the fluid's yield step");
+        adds.push("the fluid's yield step");
     }
     let not_carried: Vec<&str> = dg
         .report
@@ -179,7 +181,7 @@ pub fn write_upgraded(
             up_rmse / twin_rmse
         ))
     };
-    if added.is_empty() {
+    if adds.is_empty() {
         write_twin_file(
             out,
             &format!(
@@ -193,6 +195,7 @@ pub fn write_upgraded(
         json["upgraded"] = json!({
             "file": out.display().to_string(),
             "added": added,
+            "yield_step_added": false,
             "replay_rmse_N": twin_rmse,
             "replay_ratio": 1.0,
         });
@@ -206,7 +209,7 @@ pub fn write_upgraded(
             "--write-params: the twin's model '{}' takes no effects and no yield step; fit a \
              two-chamber twin (mrtwin fit --model two-chamber) to add {}",
             config.model,
-            added.join(", ")
+            adds.join(", ")
         );
     }
     let effects = found
@@ -285,7 +288,7 @@ pub fn write_upgraded(
              calibrated there.\nReplay RMS residual {:.4} N → {:.4} N (ratio {:.3}; predicted from \
              the variance diagnose explained: {:.3}).{}",
             params_path.display(),
-            added.join(", "),
+            adds.join(", "),
             input.display(),
             twin_rmse,
             up_rmse,
@@ -305,6 +308,7 @@ pub fn write_upgraded(
     json["upgraded"] = json!({
         "file": out.display().to_string(),
         "added": added,
+        "yield_step_added": step.is_some(),
         "effects": effects.to_string(),
         "replay_rmse_N": up_rmse,
         "replay_ratio": up_rmse / twin_rmse,

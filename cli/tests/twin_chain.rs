@@ -280,6 +280,7 @@ fn the_fluids_yield_step_that_diagnose_carries_reaches_the_twin() {
         shape.iter().any(|s| s["follows"] == "yield_force"),
         "no yield-scaled step in diagnose's fluid shape: {shape:?}"
     );
+    assert_eq!(c.json["twin"]["upgraded"]["yield_step_added"], true);
     let up = load(&c.upgraded);
     let fluid = &up.two_chamber.fluid;
     assert!(fluid.yield_step_share > 0.0, "{}", fluid.yield_step_share);
