@@ -32,13 +32,11 @@ pub const FRICTION_WIDTHS: [f64; 2] = [0.01, 0.10];
 /// UTFSM records it converges to the same 13 mm/s from 1 and 6 mm/s (docs/fit.md).
 pub const YIELD_STEP_WIDTH_START: f64 = 0.10;
 
-/// The fluid's shape the twin can carry: a step that follows the yield force
-/// (`fluid.yield_step_share`). A step that follows the viscous coefficient has no
-/// counterpart in the twin's fluid laws and is not carried.
-fn yield_step(shapes: &[FluidShape]) -> Option<&FluidShape> {
-    shapes
-        .iter()
-        .find(|s| s.follows == ShapeFollows::YieldForce && s.share > 0.0)
+/// Whether the twin can carry this part of the fluid's shape: a step that follows the
+/// yield force (`fluid.yield_step_share`). A step that follows the viscous coefficient has
+/// no counterpart in the twin's fluid laws and is not carried.
+fn carried(shape: &FluidShape) -> bool {
+    shape.follows == ShapeFollows::YieldForce && shape.share > 0.0
 }
 
 /// The SI value of an effect's single parameter in a diagnose finding.
@@ -135,7 +133,7 @@ pub fn write_upgraded(
             Some((e, si_value(e, &f.parameters)?))
         })
         .collect();
-    let step = yield_step(&dg.report.fluid_shape);
+    let step = dg.report.fluid_shape.iter().find(|s| carried(s));
     // The effect ids added (JSON `added`), and what the upgrade adds in words.
     let added: Vec<&str> = found.iter().map(|(e, _)| e.id()).collect();
     let mut adds = added.clone();
@@ -146,7 +144,7 @@ pub fn write_upgraded(
         .report
         .fluid_shape
         .iter()
-        .filter(|s| s.follows == ShapeFollows::ViscousCoefficient)
+        .filter(|s| !carried(s))
         .map(|s| s.explanation.as_str())
         .collect();
     let (b, f) = (

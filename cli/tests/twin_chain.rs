@@ -66,6 +66,17 @@ fn chain(dir: &Path, rec: &Path) -> Chain {
     }
 }
 
+/// Issue 12's goal on a record: the upgraded twin replays at least as well as diagnose's
+/// final model predicts its held-out blocks.
+fn assert_upgrade_at_least_as_good_as_diagnoses_final(c: &Chain) {
+    let final_holdout = c.json["final"]["holdout_rmse_N"].as_f64().unwrap();
+    assert!(
+        c.upgraded_rms <= final_holdout,
+        "upgraded twin {} N against diagnose's final {final_holdout} N",
+        c.upgraded_rms
+    );
+}
+
 fn found(c: &Chain) -> Vec<String> {
     c.json["findings"]
         .as_array()
@@ -236,12 +247,7 @@ fn real_records_upgrade_the_twin_where_diagnose_finds_something() {
     // diagnose's final model predicts its held-out blocks (68.4 against 68.5 N since the
     // sixteenth diagnose pass; 73.2 N before the twin had a pre-yield leak, which the
     // upgrade tried and kept).
-    let final_holdout = c.json["final"]["holdout_rmse_N"].as_f64().unwrap();
-    assert!(
-        c.upgraded_rms <= final_holdout,
-        "upgraded twin {} N against diagnose's final {final_holdout} N",
-        c.upgraded_rms
-    );
+    assert_upgrade_at_least_as_good_as_diagnoses_final(&c);
     assert!(load(&c.upgraded).two_chamber.fluid.pre_yield_leak > 0.0);
     // and its replay ratio is the one diagnose claimed for its own models (0.417 against
     // 0.346; 0.446 against 0.370 without the leak).
@@ -291,12 +297,7 @@ fn the_fluids_yield_step_that_diagnose_carries_reaches_the_twin() {
         "width {} not moved from its start",
         fluid.yield_step_velocity_m_s
     );
-    let final_holdout = c.json["final"]["holdout_rmse_N"].as_f64().unwrap();
-    assert!(
-        c.upgraded_rms <= final_holdout,
-        "upgraded twin {} N against diagnose's final {final_holdout} N",
-        c.upgraded_rms
-    );
+    assert_upgrade_at_least_as_good_as_diagnoses_final(&c);
     // Without the step: the upgraded file with the share at 0, refitted.
     let text = std::fs::read_to_string(&c.upgraded).unwrap();
     let without = dir.path("").join("no-step.yaml");
