@@ -324,3 +324,75 @@ fn a_gas_spring_and_a_mass_that_cancel_alone_are_found_as_a_pair() {
         "mass {mass} kg against {m_true}"
     );
 }
+
+/// The online yield-stress estimator's σ on six proving-ground scenarios
+/// (`scripts/proving_ground/estimator_coverage.py`): each replayed through the twin with
+/// the generator's geometry and compared, every 0.5 s, with the yield stress the simulated
+/// fluid really had. Run with and without the model-error widening (issue 13). The
+/// 100-scenario study is in BENCHMARKS.md; its target (2σ coverage 90–98 %) is not met,
+/// and this is a regression guard, not the goal.
+#[test]
+fn the_yield_estimators_sigma_against_the_independent_truth() {
+    let dir = TempDir::new("pg-cov");
+    let script = repo_root().join("scripts/proving_ground/estimator_coverage.py");
+    let work = dir.path("work");
+    let summary = |widen: bool| -> serde_json::Value {
+        let setting = format!("widen_for_model_error={widen}");
+        run_python(
+            RUN_FILE,
+            &[
+                script.to_str().unwrap(),
+                "--seeds",
+                "4,7,15,20,27,32",
+                "--jobs",
+                "2",
+                "--bin",
+                env!("CARGO_BIN_EXE_mrtwin"),
+                "--out",
+                work.to_str().unwrap(),
+                "--estimator",
+                &setting,
+            ],
+            Duration::from_secs(600),
+        );
+        read_json(&work.join("coverage.json"))
+    };
+    let (off, on) = (summary(false), summary(true));
+    for j in [&off, &on] {
+        assert!(
+            j["failures"].as_array().unwrap().is_empty(),
+            "{}",
+            j["failures"]
+        );
+        // The twin's rod force per pascal is the generator's 2 L A1/h: τ0 and the truth
+        // are in the same units.
+        assert!(j["force_per_pa_max_rel_diff"].as_f64().unwrap() < 1e-9);
+        assert_eq!(
+            j["summary"]["overall"]["records"], 5,
+            "records with estimates"
+        );
+    }
+    let (a, b) = (&off["summary"]["overall"], &on["summary"]["overall"]);
+    let f = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap();
+    eprintln!(
+        "2σ coverage {:.3} → {:.3} with the widening; median σ/τ {:.4} → {:.4}; median \
+         |error|/τ {:.4}",
+        f(a, "cover2"),
+        f(b, "cover2"),
+        f(a, "median_rel_sd"),
+        f(b, "median_rel_sd"),
+        f(b, "median_rel_err")
+    );
+    // The estimates themselves are the same with and without the widening, and close.
+    assert_eq!(f(a, "median_rel_err"), f(b, "median_rel_err"));
+    assert!(
+        f(b, "median_rel_err") < 0.10,
+        "median error {}",
+        f(b, "median_rel_err")
+    );
+    // The widening acts (when written: 38 → 40 of 86 points within 2σ).
+    assert!(
+        b["cover2_k"].as_u64().unwrap() > a["cover2_k"].as_u64().unwrap(),
+        "the widening covered no more points: {a} / {b}"
+    );
+}

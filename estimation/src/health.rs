@@ -682,6 +682,21 @@ fn stale(id: CheckId) -> Check {
     }
 }
 
+/// "; σ widened for model error …" when the model-error part of σ is at least the
+/// statistical part (the structure left in the residual dominates), else "".
+fn widened(e: &Tau0Estimate) -> String {
+    let stat2 = e.tau0_std_pa.powi(2) - e.model_std_pa.powi(2);
+    if e.model_std_pa > 0.0 && e.model_std_pa.powi(2) >= stat2 {
+        format!(
+            "; σ widened for model error: the residual keeps structure in velocity worth \
+             ±{:.1} kPa",
+            e.model_std_pa / 1e3
+        )
+    } else {
+        String::new()
+    }
+}
+
 fn kv(k: &str, v: String) -> (String, String) {
     (k.to_string(), v)
 }
@@ -785,10 +800,11 @@ impl Finding for YieldStress {
                 "no estimate at the present current yet (not yet excited both ways, or not identified: σ too large)".into()
             }
             YieldStress::Unreferenced(e) => format!(
-                "τ0 {:.1} ± {:.1} kPa at {:.2} A (no reference to compare with)",
+                "τ0 {:.1} ± {:.1} kPa at {:.2} A (no reference to compare with){}",
                 e.tau0_pa / 1e3,
                 e.tau0_std_pa / 1e3,
-                e.current_a
+                e.current_a,
+                widened(&e)
             ),
             YieldStress::Compared {
                 estimate: e,
@@ -796,12 +812,13 @@ impl Finding for YieldStress {
                 change,
                 ..
             } => format!(
-                "τ0 {:.1} ± {:.1} kPa at {:.2} A, {:+.1} % from the reference {:.1} kPa",
+                "τ0 {:.1} ± {:.1} kPa at {:.2} A, {:+.1} % from the reference {:.1} kPa{}",
                 e.tau0_pa / 1e3,
                 e.tau0_std_pa / 1e3,
                 e.current_a,
                 100.0 * change,
-                r / 1e3
+                r / 1e3,
+                widened(&e)
             ),
         }
     }
@@ -812,6 +829,7 @@ impl Finding for YieldStress {
                 kv("current_a", format!("{:.4}", e.current_a)),
                 kv("tau0_pa", format!("{:.1}", e.tau0_pa)),
                 kv("tau0_std_pa", format!("{:.1}", e.tau0_std_pa)),
+                kv("tau0_model_std_pa", format!("{:.1}", e.model_std_pa)),
             ]
         };
         match self {
@@ -1089,6 +1107,7 @@ mod tests {
                     current_a: 0.5,
                     tau0_pa: 15e3 - x,
                     tau0_std_pa: 500.0,
+                    model_std_pa: 0.0,
                 }),
                 rejected: k > 3000 && k % 101 == 0,
                 stuck_channel: (k > 3000 && k % 202 == 0).then_some("force_N"),

@@ -437,8 +437,11 @@ def size_effect(rig, p_base, F_base, eff, st, target, tol=0.05, max_runs=9):
 # ---------------------------------------------------------------------------------------
 
 
-def scenario(seed):
-    """Draw and simulate one scenario. Returns (meta dict, recording dict of arrays)."""
+def scenario(seed, truth=None):
+    """Draw and simulate one scenario. Returns (meta dict, recording dict of arrays).
+
+    `truth`: an optional dict, filled with what the fluid really had at each recorded
+    sample (`yield_truth`); the recording and the meta do not depend on it."""
     rs = _streams(seed)
     hidden = plan(seed)
     geo = draw_geometry(rs["geometry"])
@@ -479,8 +482,10 @@ def scenario(seed):
                                  rms_effect_N=r, scale=s, parameters=phys,
                                  sizing_runs=[[float(a_), float(b_)] for a_, b_ in hist]))
 
-    F, T = rig.run(p)
+    F, T, If, _Q, _Fh = physics.simulate(rig.x, rig.v, rig.a, rig.icmd, rig.dt, p)
     m = rig.m
+    if truth is not None:
+        truth.update(yield_truth(p, If, T, icmd, m))
     fc = meas["aa_cutoff_hz"]
     Fm = aa_filter(F, rig.fsi, fc, m)
     xm = aa_filter(x, rig.fsi, fc, m)
@@ -530,6 +535,39 @@ def scenario(seed):
         sigma_F_N=sigma_F, force_rms_N=F_rms, force_offset_N=offset, samples=n,
     )
     return meta, rec
+
+
+def yield_truth(p, If, T, icmd, m):
+    """The yield stress acting in the fluid at each recorded sample (every m-th fine
+    sample, the instants of the recorded time column), by the simulation's own code path
+    (physics.simulate): tau_y = yield_of_current(I_field) times the thermal factor of the
+    temperature at that step when thermal_softening is on. I_field is the current the
+    fluid sees (after the field lag / coil driver when field_lag is on, else the command).
+    For every fluid law this is the law's yield-stress parameter tau0 (bi-viscous: the
+    stress where the post-yield branch starts; Papanastasiou: the asymptotic yield
+    stress). Instantaneous: the recorded channels' anti-alias filter delay (~1/(2 pi fc),
+    a few ms) is not applied. Returns numpy arrays tau_y_Pa, current_field_A,
+    current_command_A, temperature_C."""
+    idx = np.arange(0, len(If), m)
+    therm_on = p[P["therm_on"]] > 0.5
+    t_amb, beta, law = p[P["T_amb"]], p[P["beta_tau"]], int(p[P["therm_law"]])
+    tau = np.empty(len(idx))
+    for j, k in enumerate(idx):
+        tau0 = physics.yield_of_current(If[k], p)
+        if therm_on:
+            tau0 *= physics.thermal_factor(T[k] - t_amb, beta, law)
+        tau[j] = tau0
+    return dict(tau_y_Pa=tau, current_field_A=np.asarray(If[idx], dtype=float),
+                current_command_A=np.asarray(icmd[idx], dtype=float),
+                temperature_C=np.asarray(T[idx], dtype=float))
+
+
+def truth(seed):
+    """(meta, rec, truth) of `seed`: the scenario and its per-sample truth
+    (`yield_truth`), from one simulation."""
+    tr = {}
+    meta, rec = scenario(seed, truth=tr)
+    return meta, rec, tr
 
 
 def base_law_rig(seed):
