@@ -329,8 +329,9 @@ fn a_gas_spring_and_a_mass_that_cancel_alone_are_found_as_a_pair() {
 /// (`scripts/proving_ground/estimator_coverage.py`): each replayed through the twin with
 /// the generator's geometry and compared, every 0.5 s, with the yield stress the simulated
 /// fluid really had. Run with and without the model-error widening (issue 13). The
-/// 100-scenario study is in BENCHMARKS.md; its target (2σ coverage 90–98 %) is not met,
-/// and this is a regression guard, not the goal.
+/// 100-scenario study is in BENCHMARKS.md (88 % within 2σ; the 90–98 % target holds from
+/// 0.25 A to 1 A, not below 0.25 A, and is exceeded above 1 A); this is a regression
+/// guard, not the goal.
 #[test]
 fn the_yield_estimators_sigma_against_the_independent_truth() {
     let dir = TempDir::new("pg-cov");
@@ -375,24 +376,30 @@ fn the_yield_estimators_sigma_against_the_independent_truth() {
     let (a, b) = (&off["summary"]["overall"], &on["summary"]["overall"]);
     let f = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap();
     eprintln!(
-        "2σ coverage {:.3} → {:.3} with the widening; median σ/τ {:.4} → {:.4}; median \
-         |error|/τ {:.4}",
+        "2σ coverage {:.3} → {:.3} with the widening; median 2σ/τ {:.4} → {:.4} (a fixed \
+         band would need ±{:.4} for the same share); median |error|/τ {:.4} → {:.4}",
         f(a, "cover2"),
         f(b, "cover2"),
-        f(a, "median_rel_sd"),
-        f(b, "median_rel_sd"),
+        2.0 * f(a, "median_rel_sd"),
+        2.0 * f(b, "median_rel_sd"),
+        f(b, "const_band_same_cover"),
+        f(a, "median_rel_err"),
         f(b, "median_rel_err")
     );
-    // The estimates themselves are the same with and without the widening, and close.
-    assert_eq!(f(a, "median_rel_err"), f(b, "median_rel_err"));
+    // The estimates are close to the truth (what the widening leaves unpublished as not
+    // identified changes the set a little).
+    for v in [a, b] {
+        assert!(f(v, "median_rel_err") < 0.10, "median error {v}");
+    }
+    // The widening covers more (when written: 44 → 73 % of the points within 2σ) with a
+    // band narrower than a fixed one holding the same share (median ±13.6 % of τ against
+    // ±18.7 %).
     assert!(
-        f(b, "median_rel_err") < 0.10,
-        "median error {}",
-        f(b, "median_rel_err")
+        f(b, "cover2") > f(a, "cover2") + 0.1,
+        "the widening covered too little more: {a} / {b}"
     );
-    // The widening acts (when written: 38 → 40 of 86 points within 2σ).
     assert!(
-        b["cover2_k"].as_u64().unwrap() > a["cover2_k"].as_u64().unwrap(),
-        "the widening covered no more points: {a} / {b}"
+        2.0 * f(b, "median_rel_sd") < f(b, "const_band_same_cover"),
+        "the widened band is wider than a fixed one with the same coverage: {b}"
     );
 }

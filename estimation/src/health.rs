@@ -683,13 +683,13 @@ fn stale(id: CheckId) -> Check {
 }
 
 /// "; σ widened for model error …" when the model-error part of σ is at least the
-/// statistical part (the structure left in the residual dominates), else "".
+/// statistical part, else "".
 fn widened(e: &Tau0Estimate) -> String {
     let stat2 = e.tau0_std_pa.powi(2) - e.model_std_pa.powi(2);
     if e.model_std_pa > 0.0 && e.model_std_pa.powi(2) >= stat2 {
         format!(
-            "; σ widened for model error: the residual keeps structure in velocity worth \
-             ±{:.1} kPa",
+            "; σ widened for model error (structure left in the residual, and the yield \
+             force's spread between near-yield laws): ±{:.1} kPa of it",
             e.model_std_pa / 1e3
         )
     } else {
