@@ -1,0 +1,92 @@
+#!/usr/bin/env python3
+"""How often diagnose's 95 % parameter intervals hold the generator's true value (issue 13,
+last item), over a study directory of `study.py` (seedNNNN.calibrated.json beside
+seedNNNN.meta.json).
+
+    python3 scripts/proving_ground/interval_coverage.py DIR
+
+Only parameters with a clean counterpart in the generator are scored:
+- field_lag, first-order lag: the time constant (ms);
+- fluid_inertia: the fluid mass (kg) against the generator's moving mass plus its gap
+  fluid's mass;
+- thermal_softening, linear law: the softening per dissipated energy (1/kJ) against
+  β_τ / C (the yield stress's temperature coefficient over the heat capacity);
+- gas_spring: the stiffness (N/mm) against the polytropic gas's stiffness at x = 0. This
+  one is approximate: the gas's stiffness varies over the stroke and diagnose's is a line.
+Standard library only.
+"""
+import json
+import math
+import os
+import sys
+
+
+def wilson(k, n, z=1.96):
+    if n == 0:
+        return float("nan"), float("nan")
+    p = k / n
+    d = 1 + z * z / n
+    c = (p + z * z / (2 * n)) / d
+    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
+    return c - h, c + h
+
+
+def truth_of(effect, meta):
+    """(parameter name, true value in diagnose's unit) or None."""
+    eff = {e["effect"]: e for e in meta["effects"]}.get(effect)
+    if eff is None:
+        return None
+    p = eff["parameters"]
+    if effect == "field_lag" and p.get("kind") == "first_order":
+        return "field_time_constant", p["effective_tau_s"] * 1e3
+    if effect == "fluid_inertia":
+        return "fluid_mass", p["moving_mass_kg"] + p["gap_fluid_mass_kg"]
+    if effect == "thermal_softening" and p.get("law") == "linear":
+        return "softening_per_energy", p["beta_tau_per_K"] / meta["thermal"]["C_J_K"] * 1e3
+    if effect == "gas_spring":
+        return "stiffness", p["stiffness_at_0_N_m"] / 1e3
+    return None
+
+
+def main(argv):
+    d = argv[1]
+    rows = {}
+    for name in sorted(os.listdir(d)):
+        if not name.endswith(".calibrated.json"):
+            continue
+        seed = int(name[4:8])
+        with open(os.path.join(d, name)) as f:
+            dg = json.load(f)
+        with open(os.path.join(d, f"seed{seed:04d}.meta.json")) as f:
+            meta = json.load(f)
+        for fnd in dg.get("findings", []):
+            t = truth_of(fnd["effect"], meta)
+            if t is None:
+                continue
+            pname, truth = t
+            par = fnd["parameters"].get(pname)
+            if par is None:
+                continue
+            lo, hi = par["ci95"]
+            se = (hi - lo) / 3.92
+            z = (par["value"] - truth) / se if se > 0 else float("inf")
+            rows.setdefault(fnd["effect"], []).append(
+                dict(seed=seed, truth=truth, value=par["value"], lo=lo, hi=hi, z=z,
+                     rel=(par["value"] - truth) / truth if truth else float("nan")))
+    print("| effect (parameter) | found with a clean truth | 95 % interval holds it | "
+          "Wilson 95 % | median \\|z\\| | median \\|error\\| / truth | interval factor for 95 % |")
+    print("|---|---:|---:|---|---:|---:|---:|")
+    for e, r in sorted(rows.items()):
+        k = sum(1 for x in r if x["lo"] <= x["truth"] <= x["hi"])
+        lo, hi = wilson(k, len(r))
+        az = sorted(abs(x["z"]) for x in r)
+        rel = sorted(abs(x["rel"]) for x in r)
+        q95 = az[min(len(az) - 1, int(math.ceil(0.95 * len(az))) - 1)]
+        print(f"| {e} | {len(r)} | {k} | {100 * lo:.0f}–{100 * hi:.0f} % | "
+              f"{az[len(az) // 2]:.1f} | {100 * rel[len(rel) // 2]:.1f} % | {q95 / 1.96:.1f} |")
+    with open(os.path.join(d, "interval_coverage.json"), "w") as f:
+        json.dump(rows, f, indent=1)
+
+
+if __name__ == "__main__":
+    main(sys.argv)
