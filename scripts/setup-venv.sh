@@ -6,10 +6,21 @@
 # Idempotent: does nothing when the venv already has them all.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# MRTWIN_ROS_DISTRO=jazzy (with e.g. MRTWIN_VENV=.venv-jazzy): a second venv with the ROS 2
+# Jazzy wheels (ros-jazzy-*) and nothing else, for the rclpy interop matrix (docs/ros2.md).
 venv=${MRTWIN_VENV:-.venv}
-packages=(ros-rclpy ros-std-msgs ros-diagnostic-msgs ros-rmw-fastrtps-cpp ros-rosgraph-msgs
-          eclipse-zenoh rosbags mcap mcap-ros2-support numpy scipy numba pillow)
-check='import rclpy, std_msgs.msg, diagnostic_msgs.msg, rosgraph_msgs.msg, zenoh, rosbags, mcap, mcap_ros2, numpy, scipy, numba, PIL'
+if [ "${MRTWIN_ROS_DISTRO:-}" = jazzy ]; then
+  packages=(ros-jazzy-rclpy ros-jazzy-std-msgs ros-jazzy-diagnostic-msgs
+            ros-jazzy-rmw-fastrtps-cpp ros-jazzy-rosgraph-msgs)
+  check='import rclpy, std_msgs.msg, diagnostic_msgs.msg, rosgraph_msgs.msg'
+elif [ -n "${MRTWIN_ROS_DISTRO:-}" ]; then
+  echo "error: MRTWIN_ROS_DISTRO=${MRTWIN_ROS_DISTRO}: only 'jazzy' (or unset for the default wheels)" >&2
+  exit 2
+else
+  packages=(ros-rclpy ros-std-msgs ros-diagnostic-msgs ros-rmw-fastrtps-cpp ros-rosgraph-msgs
+            eclipse-zenoh rosbags mcap mcap-ros2-support numpy scipy numba pillow)
+  check='import rclpy, std_msgs.msg, diagnostic_msgs.msg, rosgraph_msgs.msg, zenoh, rosbags, mcap, mcap_ros2, numpy, scipy, numba, PIL'
+fi
 if [ -x "$venv/bin/python" ] && "$venv/bin/python" -c "$check" 2>/dev/null; then
   echo "venv $venv ready"
   exit 0

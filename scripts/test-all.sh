@@ -37,6 +37,15 @@ if [ "$status" -ne 0 ]; then
   exit "$status"
 fi
 
+# The rclpy interop matrix (docs/ros2.md): the tests that talk to rclpy (their names say
+# rclpy), again against ROS 2 Jazzy's rclpy (ros-jazzy-* wheels in a second venv). Same
+# features as above, so nothing is rebuilt.
+echo "== rclpy interop against ROS 2 Jazzy"
+MRTWIN_VENV=.venv-jazzy MRTWIN_ROS_DISTRO=jazzy bash scripts/setup-venv.sh
+MRTWIN_PYTHON="$PWD/.venv-jazzy/bin/python" \
+  cargo test --workspace --release --test ros2_rclpy --test ros2_parameters --test live \
+  --test examples -- rclpy
+
 # Each transport alone (cargo features of mrtwin): it must build without the other two,
 # pass clippy, and pass the tests that use it. Only the live tests run here
 # (cli/tests/live.rs: the node, stand, launch and record over that transport, and the

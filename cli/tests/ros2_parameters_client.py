@@ -45,8 +45,9 @@ if check_force:
     end = time.time() + 3
     while time.time() < end:
         rclpy.spin_once(node, timeout_sec=0.05)
-    before = len(forces)
     offset = get("two_chamber.load_cell_offset_n")["double"]
+    # Counted after the get: the forces that arrive while it is answered are not after the set.
+    before = len(forces)
     out["offset_set"] = set_("two_chamber.load_cell_offset_n", offset + 50000.0)
     end = time.time() + 2
     while time.time() < end:
