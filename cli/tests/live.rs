@@ -21,7 +21,9 @@ use std::time::Duration;
 use bridge::iceoryx2::controller::{run_controller, ControllerOptions};
 #[cfg(feature = "iceoryx2")]
 use bridge::iceoryx2::Iceoryx2Config;
-use mrtwin_tests::{free_port, run_python, run_python_env, ChildGuard, TempDir};
+use mrtwin_tests::{
+    free_port, run_python, run_python_env, run_python_with_msgs, ChildGuard, TempDir,
+};
 
 /// The live tests start several processes each and check timing (staleness within 2 s,
 /// 1 kHz without loss): on a 2-core machine they run one at a time.
@@ -432,6 +434,131 @@ fn rclpy_feeds_the_twin_and_reads_its_force_diagnostics_and_graph() {
             .any(|n| n[0] == "mrtwin_twin" && n[1] == "/rig"),
         "nodes: {nodes:?}"
     );
+}
+
+/// An rclpy node with `mrtwin_msgs` built natively by rosidl from PyPI wheels
+/// (`scripts/setup-msgs.sh`): publishes `DamperSample` on `<ns>/sensor/sample` (1000
+/// samples of a 2 Hz, 10 mm stroke at 1 A with F = 1000 N sgn v + 2000 N s/m v) and reads
+/// the twin's `TwinOutput` and `YieldEstimate` as typed messages. Prints one JSON object.
+const RCLPY_NATIVE_PEER: &str = r#"
+import json, math, sys, time
+import rclpy
+from rclpy.qos import QoSProfile, ReliabilityPolicy, HistoryPolicy
+from mrtwin_msgs.msg import DamperSample, TwinOutput, YieldEstimate
+ns = sys.argv[1]
+rclpy.init()
+node = rclpy.create_node("rclpy_native_peer")
+outputs, estimates = [], []
+f = lambda x: x if math.isfinite(x) else None  # JSON has no NaN
+qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+node.create_subscription(TwinOutput, f"{ns}/twin/output", lambda m: outputs.append(
+    [f(m.predicted_force), f(m.measured_force), f(m.residual), m.model_id, int(m.health_level)]), qos)
+node.create_subscription(YieldEstimate, f"{ns}/twin/yield_estimate", lambda m: estimates.append(
+    [f(m.current), f(m.tau0), f(m.tau0_std), list(m.curve_current), [f(x) for x in m.curve_tau0]]), qos)
+pub = node.create_publisher(DamperSample, f"{ns}/sensor/sample", QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT))
+deadline = time.time() + 25
+while pub.get_subscription_count() == 0 and time.time() < deadline:
+    rclpy.spin_once(node, timeout_sec=0.05)
+matched = pub.get_subscription_count()
+t0 = time.time()
+sent = 0
+for k in range(1000):
+    t = k * 0.002
+    w = 2 * math.pi * 2.0
+    m = DamperSample()
+    m.header.stamp.sec, m.header.stamp.nanosec = int(t), int(round((t % 1) * 1e9))
+    m.header.frame_id = "damper"
+    m.displacement, m.velocity = 0.01 * math.sin(w * t), 0.01 * w * math.cos(w * t)
+    m.force = 1000.0 * math.copysign(1.0, m.velocity) + 2000.0 * m.velocity
+    m.current, m.temperature = 1.0, float("nan")
+    pub.publish(m)
+    sent += 1
+    end = t0 + (k + 1) * 0.002
+    while time.time() < end:
+        rclpy.spin_once(node, timeout_sec=max(0.0, end - time.time()))
+deadline = time.time() + 5
+while time.time() < deadline and len(outputs) < sent:
+    rclpy.spin_once(node, timeout_sec=0.05)
+print(json.dumps({"matched": matched, "sent": sent, "outputs": outputs, "estimates": estimates}))
+node.destroy_node()
+rclpy.shutdown()
+"#;
+
+#[test]
+#[cfg(feature = "ros2")]
+fn rclpy_exchanges_native_mrtwin_msgs_with_the_node() {
+    let _serial = serial();
+    let dir = TempDir::new("rclpy_native");
+    let domain = 92; // this test's own ROS domain
+    let params = dir.path("twin.yaml");
+    write(
+        &params,
+        "mrtwin_twin:\n  ros__parameters:\n    damper: nativedamper\n    model: two-chamber\n    transports: [ros2]\n    input: ros2\n    control_service: false\n    ros2:\n      domain_id: 92\n",
+    );
+    let node = ChildGuard::spawn(mrtwin().args([
+        "node",
+        "--duration",
+        "40",
+        "--ros-args",
+        "--params-file",
+        params.to_str().unwrap(),
+        "-r",
+        "__ns:=/native",
+    ]));
+    let out = run_python_with_msgs(
+        RCLPY_NATIVE_PEER,
+        &["/native"],
+        &[
+            ("ROS_DOMAIN_ID", &domain.to_string()),
+            ("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp"),
+        ],
+        Duration::from_secs(60),
+    );
+    node.interrupt();
+    let (ok, node_out, err) = node.wait(Duration::from_secs(20));
+    assert!(ok, "node failed: {err}");
+    let v: serde_json::Value =
+        serde_json::from_str(out.lines().last().unwrap()).expect("rclpy JSON");
+    assert!(v["matched"].as_u64().unwrap() >= 1, "never matched: {v}");
+    let outputs = v["outputs"].as_array().unwrap();
+    assert!(
+        outputs.len() >= 900,
+        "rclpy decoded {} TwinOutput of 1000 samples sent: {node_out}",
+        outputs.len()
+    );
+    // Each output carries the measured force of the sample rclpy sent, typed.
+    for o in outputs {
+        let (pred, meas, resid) = (o[0].as_f64(), o[1].as_f64(), o[2].as_f64());
+        let (pred, meas, resid) = (pred.unwrap(), meas.unwrap(), resid.unwrap());
+        assert!(pred.is_finite() && pred.abs() < 1e5, "{o}");
+        assert!((meas.abs() - 1000.0).abs() <= 2000.0 * 0.126, "{o}");
+        assert!(
+            (resid - (meas - pred)).abs() < 1e-6 * meas.abs().max(1.0),
+            "{o}"
+        );
+        assert_eq!(o[3], "two-chamber", "{o}");
+        assert!(o[4].as_u64().unwrap() <= 3, "{o}");
+    }
+    // The twin's yield estimate, typed: at 1 A, with a curve; τ0 = F_y/a with F_y = 1000 N
+    // and a = 2 L A1/h = 0.0363 m² of the default two-chamber damper.
+    let estimates = v["estimates"].as_array().unwrap();
+    let last = estimates
+        .iter()
+        .rev()
+        .find(|e| e[1].as_f64().is_some())
+        .unwrap_or_else(|| panic!("no finite τ0 in {} YieldEstimate", estimates.len()));
+    let tau0 = last[1].as_f64().unwrap();
+    eprintln!(
+        "{} TwinOutput, {} YieldEstimate decoded; last estimate {last}",
+        outputs.len(),
+        estimates.len()
+    );
+    assert!((last[0].as_f64().unwrap() - 1.0).abs() < 1e-9, "{last}");
+    assert!(
+        (tau0 / (1000.0 / 0.0363) - 1.0).abs() < 0.2,
+        "τ0 {tau0} Pa: {last}"
+    );
+    assert!(!last[3].as_array().unwrap().is_empty(), "{last}");
 }
 
 #[test]

@@ -107,17 +107,57 @@ pub fn run_python_env(
     env: &[(&str, &str)],
     timeout: std::time::Duration,
 ) -> String {
-    use std::io::Read;
-    use std::process::{Command, Stdio};
-    let mut child = Command::new(python())
-        .arg("-c")
+    let mut cmd = std::process::Command::new(python());
+    cmd.arg("-c")
         .arg(script)
         .args(args)
-        .envs(env.iter().copied())
+        .envs(env.iter().copied());
+    run_bounded(cmd, "python", timeout)
+}
+
+/// The environment script of the natively built `mrtwin_msgs` (`scripts/setup-msgs.sh`):
+/// `$MRTWIN_MSGS_ENV`, else `<repo>/.msgs/env.sh`.
+pub fn msgs_env() -> PathBuf {
+    let p = std::env::var_os("MRTWIN_MSGS_ENV")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| repo_root().join(".msgs/env.sh"));
+    assert!(
+        p.is_file(),
+        "mrtwin_msgs built with rosidl not found at {}: run `bash scripts/setup-msgs.sh` \
+         (scripts/test-all.sh does)",
+        p.display()
+    );
+    p
+}
+
+/// Runs a Python script in the environment of [`msgs_env`] (its venv's Python, which
+/// imports `mrtwin_msgs`), with arguments and extra environment; its stdout.
+pub fn run_python_with_msgs(
+    script: &str,
+    args: &[&str],
+    env: &[(&str, &str)],
+    timeout: std::time::Duration,
+) -> String {
+    let mut cmd = std::process::Command::new("bash");
+    cmd.arg("-c")
+        .arg(". \"$0\" && exec python -c \"$1\" \"${@:2}\"")
+        .arg(msgs_env())
+        .arg(script)
+        .args(args)
+        .envs(env.iter().copied());
+    run_bounded(cmd, "python (mrtwin_msgs)", timeout)
+}
+
+/// Runs `cmd` to completion within `timeout` (killed and a panic after it), draining its
+/// output; its stdout. Panics with stderr when it fails.
+fn run_bounded(mut cmd: std::process::Command, what: &str, timeout: std::time::Duration) -> String {
+    use std::io::Read;
+    use std::process::Stdio;
+    let mut child = cmd
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
-        .expect("start python");
+        .unwrap_or_else(|e| panic!("start {what}: {e}"));
     let mut so = child.stdout.take().expect("stdout");
     let mut se = child.stderr.take().expect("stderr");
     let out = std::thread::spawn(move || {
@@ -132,20 +172,20 @@ pub fn run_python_env(
     });
     let deadline = std::time::Instant::now() + timeout;
     let status = loop {
-        if let Some(status) = child.try_wait().expect("wait python") {
+        if let Some(status) = child.try_wait().expect("wait") {
             break status;
         }
         if std::time::Instant::now() > deadline {
             child.kill().ok();
             child.wait().ok();
             let err = err.join().unwrap_or_default();
-            panic!("python did not finish within {timeout:?}:\n{err}");
+            panic!("{what} did not finish within {timeout:?}:\n{err}");
         }
         std::thread::sleep(std::time::Duration::from_millis(20));
     };
     let out = out.join().unwrap_or_default();
     let err = err.join().unwrap_or_default();
-    assert!(status.success(), "python failed ({status}):\n{err}\n{out}");
+    assert!(status.success(), "{what} failed ({status}):\n{err}\n{out}");
     out
 }
 
