@@ -1070,6 +1070,47 @@ mod tests {
         assert_eq!(m.checks().len(), 7);
     }
 
+    /// The `yield stress` check says when σ was widened for model error (issue 13), with
+    /// how much, and only then.
+    #[test]
+    fn the_yield_check_says_when_sigma_was_widened_for_model_error() {
+        let check = |model_std_pa: f64| {
+            let mut m = HealthMonitor::new(HealthConfig::default());
+            m.observe(&Observation {
+                time_s: 0.0,
+                current_a: 1.0,
+                estimate: Some(Tau0Estimate {
+                    current_a: 1.0,
+                    tau0_pa: 20e3,
+                    tau0_std_pa: 3000.0,
+                    model_std_pa,
+                }),
+                ..Default::default()
+            });
+            m.checks()
+                .into_iter()
+                .find(|c| c.name == CheckId::YieldStress.to_string())
+                .expect("a yield stress check")
+        };
+        let widened = check(2900.0);
+        assert!(
+            widened.message.contains("σ widened for model error")
+                && widened.message.contains("±2.9 kPa"),
+            "{}",
+            widened.message
+        );
+        assert!(widened
+            .values
+            .contains(&("tau0_model_std_pa".to_string(), "2900.0".to_string())));
+        // A model-error part smaller than the statistical one is not announced.
+        let statistical = check(1000.0);
+        assert!(
+            !statistical.message.contains("widened"),
+            "{}",
+            statistical.message
+        );
+    }
+
     #[test]
     fn checks_come_in_the_order_of_their_ids() {
         let mut m = HealthMonitor::new(HealthConfig::default());
