@@ -16,6 +16,6 @@ pub mod online;
 
 pub use health::{Check, CheckId, HealthConfig, HealthMonitor, Level, Observation};
 pub use online::{
-    force_per_pa, regressor, EstimatorConfig, EstimatorSample, LawAt, RejectReason, Tau0Estimate,
-    UpdateOutcome, YieldEstimator,
+    force_per_pa, regressor, EstimatorConfig, EstimatorSample, LawAt, PreYieldGate, RejectReason,
+    Tau0Estimate, UpdateOutcome, YieldEstimator,
 };

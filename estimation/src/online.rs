@@ -112,11 +112,11 @@ pub struct EstimatorConfig {
     /// A point's τ0 counts as identified only while its σ is at most this fraction of the
     /// largest τ0 of the curve; others are not published. Default 0.25.
     pub identified_max_std_ratio: f64,
-    /// Widen σ for model error: the structure the model leaves in its residual, as a
-    /// function of the velocity (the RMS of the innovations' mean per velocity class,
-    /// beyond what their noise explains), is added in quadrature to the yield force's
-    /// statistical σ (docs/estimation.md, "Uncertainty when the model is wrong"). Off: σ
-    /// is the regression's alone. Default on.
+    /// Widen σ for model error: the structure the model leaves in its residual (the RMS
+    /// of the innovations' mean per class of motion, beyond what their noise explains)
+    /// and the model-form spread (`model_form_share`) are added in quadrature to the yield
+    /// force's statistical σ (docs/estimation.md, "Uncertainty when the model is wrong").
+    /// Off: σ is the regression's alone. Default on.
     pub widen_for_model_error: bool,
     /// With `widen_for_model_error` and the √ term on: the share κ of the model-form
     /// spread — how far the yield force would move without the √ term (a plain Bingham
@@ -223,7 +223,8 @@ pub struct Tau0Estimate {
     /// `widen_for_model_error`, the model-error part below, in quadrature.
     pub tau0_std_pa: f64,
     /// The part of σ that is model error \[Pa\] (0 when not widened): the structure left
-    /// in the residual, taken as what it may move the yield force by.
+    /// in the residual and the model-form spread, taken as what they may move the yield
+    /// force by.
     pub model_std_pa: f64,
 }
 
@@ -236,7 +237,8 @@ pub struct LawAt {
     pub theta: [f64; P],
     /// Covariance of θ \[N²\].
     pub covariance: [[f64; P]; P],
-    /// Model-error variance of F_y \[N²\] (0 unless `widen_for_model_error`).
+    /// Model-error variance of F_y \[N²\] (0 unless `widen_for_model_error`), as in
+    /// [`Tau0Estimate::model_std_pa`].
     pub model_variance_n2: f64,
 }
 
@@ -313,11 +315,55 @@ fn ar1_inflation(lag1: f64, lag0: f64) -> f64 {
 /// variance, a difference of numbers of order `initial_covariance`) would be rounding.
 const ADJACENT_KNOT_PRIOR: f64 = 1.0;
 
-/// Velocity classes of the residual-structure statistic: the sign of v times |v| in
-/// octaves of the pre-yield gate g (g–2g, 2g–4g, 4g–8g, ≥ 8g).
+/// The pre-yield gate (`pre_yield_velocity_m_s`, `pre_yield_stroke_m`): a sample is
+/// post-yield when |v| reaches the velocity gate and the rod has moved the stroke gate
+/// since the velocity last changed sign. One gate for the estimator, [`batch_fit`] and
+/// predictive checks on held-out samples.
+#[derive(Debug, Clone, Copy)]
+pub struct PreYieldGate {
+    /// Sign of the last nonzero velocity and the displacement where it last changed.
+    last_sign: f64,
+    reversal_x_m: f64,
+}
+
+impl Default for PreYieldGate {
+    fn default() -> Self {
+        Self {
+            last_sign: 0.0,
+            reversal_x_m: f64::NAN,
+        }
+    }
+}
+
+impl PreYieldGate {
+    /// Notes a sample's motion: where the velocity changes sign.
+    pub fn observe(&mut self, v: f64, x: f64) {
+        if v != 0.0 && v.signum() != self.last_sign {
+            self.last_sign = v.signum();
+            self.reversal_x_m = x;
+        }
+    }
+
+    /// Whether an observed sample (v, x) is post-yield. Before the first reversal the
+    /// reversal point is NaN and the stroke gate passes.
+    pub fn passes(&self, cfg: &EstimatorConfig, v: f64, x: f64) -> bool {
+        !(v.abs() < cfg.pre_yield_velocity_m_s
+            || (x - self.reversal_x_m).abs() < cfg.pre_yield_stroke_m)
+    }
+
+    /// [`Self::observe`] then [`Self::passes`].
+    pub fn post_yield(&mut self, cfg: &EstimatorConfig, v: f64, x: f64) -> bool {
+        self.observe(v, x);
+        self.passes(cfg, v, x)
+    }
+}
+
+/// Classes of motion of the residual-structure statistic: the sign of v, |v| in octaves
+/// of the pre-yield gate g (g–2g, 2g–4g, 4g–8g, ≥ 8g), and moving away from or back
+/// towards the centre (the sign of x v).
 const STRUCTURE_CLASSES: usize = 16;
 
-/// The velocity class of a (post-yield) sample, see [`STRUCTURE_CLASSES`].
+/// The class of motion of a (post-yield) sample, see [`STRUCTURE_CLASSES`].
 fn structure_class(cfg: &EstimatorConfig, v: f64, x: f64) -> usize {
     let r = (v.abs() / cfg.pre_yield_velocity_m_s.max(f64::MIN_POSITIVE)).max(1.0);
     let octave = (r.log2().floor() as usize).min(3);
@@ -373,7 +419,7 @@ struct Knot {
     last_eps: Option<f64>,
     /// [`Knot::form_spread`] at the last solve \[N\].
     form_spread_n: f64,
-    /// Per velocity class ([`structure_class`]): Σ e, Σ 1 and Σ 1² of the a-priori
+    /// Per class of motion ([`structure_class`]): Σ e, Σ 1 and Σ 1² of the a-priori
     /// innovations e \[N\] with the knot's forgetting (the residual's structure).
     structure: [[f64; 3]; STRUCTURE_CLASSES],
     /// Σ h over its updates (not forgotten): the effective number of samples.
@@ -433,7 +479,7 @@ impl Knot {
     }
 
     /// The variance of the structure the model leaves in its residual \[N²\]: over the
-    /// velocity classes, the weighted mean of (class mean of the innovations)² less what
+    /// classes of motion, the weighted mean of (class mean of the innovations)² less what
     /// the noise gives a class mean (σ² × inflation × Σ1²/(Σ1)²), never below 0. A right
     /// model leaves every class mean at noise level, and this near 0.
     fn structure_variance(&self) -> f64 {
@@ -448,6 +494,17 @@ impl Knot {
         }
         if total > 0.0 {
             (acc / total).max(0.0)
+        } else {
+            0.0
+        }
+    }
+
+    /// The model-error variance of the yield force \[N²\] (`widen_for_model_error`): the
+    /// structure left in the residual and κ × the model-form spread, in quadrature; 0 when
+    /// not widened.
+    fn model_variance(&self, cfg: &EstimatorConfig) -> f64 {
+        if cfg.widen_for_model_error {
+            self.structure_variance() + (cfg.model_form_share * self.form_spread_n).powi(2)
         } else {
             0.0
         }
@@ -511,9 +568,7 @@ pub struct YieldEstimator {
     last_time_s: Option<f64>,
     last_key: Option<i64>,
     settle_until_s: f64,
-    /// Sign of the last nonzero velocity and the displacement where it last changed.
-    last_sign: f64,
-    reversal_x_m: f64,
+    gate: PreYieldGate,
     rejected: u64,
     updated: u64,
     /// The physical curve ([`Self::curve`]) and the law's points it is made from
@@ -546,8 +601,7 @@ impl YieldEstimator {
             last_time_s: None,
             last_key: None,
             settle_until_s: f64::NEG_INFINITY,
-            last_sign: 0.0,
-            reversal_x_m: f64::NAN,
+            gate: PreYieldGate::default(),
             rejected: 0,
             updated: 0,
             curve: Vec::new(),
@@ -664,17 +718,11 @@ impl YieldEstimator {
             }
         }
         let v = s.velocity_m_s;
-        if v != 0.0 && v.signum() != self.last_sign {
-            self.last_sign = v.signum();
-            self.reversal_x_m = s.displacement_m;
-        }
+        self.gate.observe(v, s.displacement_m);
         if s.time_s < self.settle_until_s {
             return UpdateOutcome::SkippedSettling;
         }
-        // NaN before the first reversal: the stroke gate passes.
-        if v.abs() < self.cfg.pre_yield_velocity_m_s
-            || (s.displacement_m - self.reversal_x_m).abs() < self.cfg.pre_yield_stroke_m
-        {
+        if !self.gate.passes(&self.cfg, v, s.displacement_m) {
             return UpdateOutcome::SkippedPreYield;
         }
         for &i in &idx[..n] {
@@ -853,7 +901,9 @@ impl YieldEstimator {
             } else {
                 M5::zeros()
             };
-            k.form_spread_n = if self.cfg.widen_for_model_error {
+            // Solved here, where the knot changes, not per published point.
+            k.form_spread_n = if self.cfg.widen_for_model_error && self.cfg.model_form_share != 0.0
+            {
                 k.form_spread(&self.cfg)
             } else {
                 0.0
@@ -960,9 +1010,7 @@ impl YieldEstimator {
             let h = hs[a].1;
             theta += h * k.theta;
             cov += (h * h * k.scale()) * k.cov;
-            if self.cfg.widen_for_model_error {
-                model += h * k.structure_variance();
-            }
+            model += h * k.model_variance(&self.cfg);
         }
         if n == 2 {
             let (k0, k1) = (&self.knots[idx[0]], &self.knots[idx[1]]);
@@ -1010,11 +1058,7 @@ fn raw_points_into(
             continue;
         };
         let stat = (var * k.scale()).max(0.0);
-        let model = if cfg.widen_for_model_error {
-            k.structure_variance() + (cfg.model_form_share * k.form_spread_n).powi(2)
-        } else {
-            0.0
-        };
+        let model = k.model_variance(cfg);
         let e = Tau0Estimate {
             current_a: i,
             tau0_pa: fy / force_per_pa,
@@ -1106,7 +1150,7 @@ pub fn batch_fit(
     let mut b = [0.0; P];
     let mut rows = Vec::new();
     let mut sum_i = 0.0;
-    let (mut last_sign, mut reversal_x) = (0.0, f64::NAN);
+    let mut gate = PreYieldGate::default();
     for s in samples {
         let v = s.velocity_m_s;
         if ![s.force_n, v, s.displacement_m, s.current_a]
@@ -1115,13 +1159,7 @@ pub fn batch_fit(
         {
             continue;
         }
-        if v != 0.0 && v.signum() != last_sign {
-            last_sign = v.signum();
-            reversal_x = s.displacement_m;
-        }
-        if v.abs() < cfg.pre_yield_velocity_m_s
-            || (s.displacement_m - reversal_x).abs() < cfg.pre_yield_stroke_m
-        {
+        if !gate.post_yield(cfg, v, s.displacement_m) {
             continue;
         }
         let phi = regressor(cfg, v, s.displacement_m);

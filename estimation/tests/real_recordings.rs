@@ -183,16 +183,10 @@ fn predictive_z(
 ) -> (f64, f64, f64) {
     let mut r = Vec::new();
     let mut g = [0.0; 5];
-    let (mut sign, mut reversal_x) = (0.0, f64::NAN);
+    let mut gate = estimation::PreYieldGate::default();
     for s in held {
         let v = s.velocity_m_s;
-        if v != 0.0 && v.signum() != sign {
-            sign = v.signum();
-            reversal_x = s.displacement_m;
-        }
-        if v.abs() < cfg.pre_yield_velocity_m_s
-            || (s.displacement_m - reversal_x).abs() < cfg.pre_yield_stroke_m
-        {
+        if !gate.post_yield(cfg, v, s.displacement_m) {
             continue;
         }
         let phi = estimation::regressor(cfg, v, s.displacement_m);
@@ -207,8 +201,7 @@ fn predictive_z(
     let d = r.iter().sum::<f64>() / n;
     let var = r.iter().map(|x| (x - d).powi(2)).sum::<f64>() / (n - 1.0);
     let lag1 = r.windows(2).map(|w| (w[0] - d) * (w[1] - d)).sum::<f64>() / (n - 1.0);
-    let rho = (lag1 / var).clamp(0.0, numerics::stats::AR1_RHO_MAX);
-    let noise2 = var / n * (1.0 + rho) / (1.0 - rho);
+    let noise2 = var / n * numerics::stats::ar1_variance_inflation(lag1 / var);
     let sd = (law.std_along(&g).powi(2) + noise2).sqrt();
     (d / sd, d, sd)
 }
