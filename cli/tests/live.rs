@@ -274,6 +274,45 @@ fn iceoryx2_controller_process_runs_1khz_for_10s_against_the_node_without_loss()
     assert!(out.contains("control requests"), "{out}");
 }
 
+/// Runs `mrtwin node` on ROS 2 alone (its own domain `domain`, namespace `ns`, samples in
+/// over ROS 2) while `peer` runs with that domain's ROS environment; the peer's last line
+/// as JSON and the node's standard output, once the node stopped cleanly.
+#[cfg(feature = "ros2")]
+fn ros2_node_with_peer(
+    domain: u16,
+    ns: &str,
+    damper: &str,
+    peer: impl FnOnce(&[(&str, &str)]) -> String,
+) -> (serde_json::Value, String) {
+    let dir = TempDir::new(&format!("ros2_peer_{damper}"));
+    let params = dir.path("twin.yaml");
+    write(
+        &params,
+        &format!(
+            "mrtwin_twin:\n  ros__parameters:\n    damper: {damper}\n    model: two-chamber\n    transports: [ros2]\n    input: ros2\n    control_service: false\n    ros2:\n      domain_id: {domain}\n"
+        ),
+    );
+    let node = ChildGuard::spawn(mrtwin().args([
+        "node",
+        "--duration",
+        "40",
+        "--ros-args",
+        "--params-file",
+        params.to_str().unwrap(),
+        "-r",
+        &format!("__ns:={ns}"),
+    ]));
+    let out = peer(&[
+        ("ROS_DOMAIN_ID", &domain.to_string()),
+        ("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp"),
+    ]);
+    node.interrupt();
+    let (ok, node_out, err) = node.wait(Duration::from_secs(20));
+    assert!(ok, "node failed: {err}");
+    let v = serde_json::from_str(out.lines().last().unwrap()).expect("rclpy JSON");
+    (v, node_out)
+}
+
 /// An rclpy node (Fast DDS from PyPI): publishes damper samples as the standard
 /// `std_msgs/Float64MultiArray` on `<ns>/sensor/sample_array`, listens to the twin's
 /// predicted force (`std_msgs/Float64`) and `/diagnostics`, and reports rclpy's view of
@@ -325,37 +364,15 @@ rclpy.shutdown()
 #[cfg(feature = "ros2")]
 fn rclpy_feeds_the_twin_and_reads_its_force_diagnostics_and_graph() {
     let _serial = serial();
-    let dir = TempDir::new("rclpy_twin");
-    let domain = 91; // this test's own ROS domain
-    let params = dir.path("twin.yaml");
-    write(
-        &params,
-        "mrtwin_twin:\n  ros__parameters:\n    damper: rclpydamper\n    model: two-chamber\n    transports: [ros2]\n    input: ros2\n    control_service: false\n    ros2:\n      domain_id: 91\n",
-    );
-    let node = ChildGuard::spawn(mrtwin().args([
-        "node",
-        "--duration",
-        "40",
-        "--ros-args",
-        "--params-file",
-        params.to_str().unwrap(),
-        "-r",
-        "__ns:=/rig",
-    ]));
-    let out = run_python_env(
-        RCLPY_PEER,
-        &["/rig", msgs::SAMPLE_ARRAY_LABEL],
-        &[
-            ("ROS_DOMAIN_ID", &domain.to_string()),
-            ("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp"),
-        ],
-        Duration::from_secs(60),
-    );
-    node.interrupt();
-    let (ok, node_out, err) = node.wait(Duration::from_secs(20));
-    assert!(ok, "node failed: {err}");
-    let v: serde_json::Value =
-        serde_json::from_str(out.lines().last().unwrap()).expect("rclpy JSON");
+    // This test's own ROS domain.
+    let (v, node_out) = ros2_node_with_peer(91, "/rig", "rclpydamper", |env| {
+        run_python_env(
+            RCLPY_PEER,
+            &["/rig", msgs::SAMPLE_ARRAY_LABEL],
+            env,
+            Duration::from_secs(60),
+        )
+    });
     assert!(
         v["matched"].as_u64().unwrap() >= 1,
         "rclpy publisher never matched the twin: {v}"
@@ -488,37 +505,15 @@ rclpy.shutdown()
 #[cfg(feature = "ros2")]
 fn rclpy_exchanges_native_mrtwin_msgs_with_the_node() {
     let _serial = serial();
-    let dir = TempDir::new("rclpy_native");
-    let domain = 92; // this test's own ROS domain
-    let params = dir.path("twin.yaml");
-    write(
-        &params,
-        "mrtwin_twin:\n  ros__parameters:\n    damper: nativedamper\n    model: two-chamber\n    transports: [ros2]\n    input: ros2\n    control_service: false\n    ros2:\n      domain_id: 92\n",
-    );
-    let node = ChildGuard::spawn(mrtwin().args([
-        "node",
-        "--duration",
-        "40",
-        "--ros-args",
-        "--params-file",
-        params.to_str().unwrap(),
-        "-r",
-        "__ns:=/native",
-    ]));
-    let out = run_python_with_msgs(
-        RCLPY_NATIVE_PEER,
-        &["/native"],
-        &[
-            ("ROS_DOMAIN_ID", &domain.to_string()),
-            ("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp"),
-        ],
-        Duration::from_secs(60),
-    );
-    node.interrupt();
-    let (ok, node_out, err) = node.wait(Duration::from_secs(20));
-    assert!(ok, "node failed: {err}");
-    let v: serde_json::Value =
-        serde_json::from_str(out.lines().last().unwrap()).expect("rclpy JSON");
+    // This test's own ROS domain.
+    let (v, node_out) = ros2_node_with_peer(92, "/native", "nativedamper", |env| {
+        run_python_with_msgs(
+            RCLPY_NATIVE_PEER,
+            &["/native"],
+            env,
+            Duration::from_secs(60),
+        )
+    });
     assert!(v["matched"].as_u64().unwrap() >= 1, "never matched: {v}");
     let outputs = v["outputs"].as_array().unwrap();
     assert!(

@@ -35,6 +35,9 @@ import time
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+if HERE not in sys.path:
+    sys.path.insert(0, HERE)
+from pgstats import wilson  # noqa: E402
 REPO = os.path.dirname(os.path.dirname(HERE))
 EFFECTS = ("fluid_compressibility", "gas_spring", "seal_friction", "thermal_softening",
            "field_lag", "fluid_inertia")
@@ -106,8 +109,6 @@ def prepare(seed, workdir):
     p = _paths(workdir, seed)
     if all(os.path.exists(p[k]) for k in ("csv", "meta", "truth")):
         return None, None
-    if HERE not in sys.path:
-        sys.path.insert(0, HERE)
     import generate  # noqa: E402  (scipy + numba: only where a scenario is generated)
     t0 = time.process_time()
     meta, rec, tr = generate.truth(seed)
@@ -223,16 +224,6 @@ def _record_task(task):
 
 # ---------------------------------------------------------------------------------------
 # statistics
-
-
-def wilson(k, n, z=1.96):
-    if n == 0:
-        return float("nan"), float("nan"), float("nan")
-    p = k / n
-    d = 1 + z * z / n
-    c = (p + z * z / (2 * n)) / d
-    hw = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
-    return p, max(0.0, c - hw), min(1.0, c + hw)
 
 
 def _pts(rec, skey):

@@ -20,15 +20,8 @@ import math
 import os
 import sys
 
-
-def wilson(k, n, z=1.96):
-    if n == 0:
-        return float("nan"), float("nan")
-    p = k / n
-    d = 1 + z * z / n
-    c = (p + z * z / (2 * n)) / d
-    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
-    return c - h, c + h
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from pgstats import wilson  # noqa: E402
 
 
 def truth_of(effect, meta):
@@ -78,7 +71,7 @@ def main(argv):
     print("|---|---:|---:|---|---:|---:|---:|")
     for e, r in sorted(rows.items()):
         k = sum(1 for x in r if x["lo"] <= x["truth"] <= x["hi"])
-        lo, hi = wilson(k, len(r))
+        _, lo, hi = wilson(k, len(r))
         az = sorted(abs(x["z"]) for x in r)
         rel = sorted(abs(x["rel"]) for x in r)
         q95 = az[min(len(az) - 1, int(math.ceil(0.95 * len(az))) - 1)]

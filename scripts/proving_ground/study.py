@@ -16,7 +16,6 @@ Scoring (per record and selector):
 import argparse
 import hashlib
 import json
-import math
 import multiprocessing as mp
 import os
 import shutil
@@ -28,20 +27,11 @@ import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import generate  # noqa: E402
+from pgstats import wilson  # noqa: E402
 
 EFFECTS = generate.EFFECTS
 # null, each effect alone, and a three-effect record (see plan() in generate.py)
 QUICK_SEEDS = [18, 3, 26, 15, 23, 8, 5, 0]
-
-
-def wilson(k, n, z=1.96):
-    if n == 0:
-        return float("nan"), float("nan"), float("nan")
-    p = k / n
-    d = 1 + z * z / n
-    c = (p + z * z / (2 * n)) / d
-    hw = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
-    return p, max(0.0, c - hw), min(1.0, c + hw)
 
 
 def fmt_rate(k, n):

@@ -82,12 +82,23 @@ pub fn repo_root() -> PathBuf {
 /// Panics with what to do when it is missing: `scripts/test-all.sh` creates it with
 /// `scripts/setup-venv.sh` (rclpy + Fast DDS, eclipse-zenoh, rosbags, mcap from PyPI).
 pub fn python() -> PathBuf {
-    let p = std::env::var_os("MRTWIN_PYTHON")
+    set_up_file(
+        "MRTWIN_PYTHON",
+        ".venv/bin/python",
+        "interop Python",
+        "scripts/setup-venv.sh",
+    )
+}
+
+/// A file a set-up script makes: `$var`, else `<repo>/default`. Panics naming the script
+/// to run when it is missing (`scripts/test-all.sh` runs them all).
+fn set_up_file(var: &str, default: &str, what: &str, script: &str) -> PathBuf {
+    let p = std::env::var_os(var)
         .map(PathBuf::from)
-        .unwrap_or_else(|| repo_root().join(".venv/bin/python"));
+        .unwrap_or_else(|| repo_root().join(default));
     assert!(
-        p.exists(),
-        "interop Python {} not found: run `bash scripts/setup-venv.sh` (scripts/test-all.sh does)",
+        p.is_file(),
+        "{what} {} not found: run `bash {script}` (scripts/test-all.sh does)",
         p.display()
     );
     p
@@ -118,16 +129,12 @@ pub fn run_python_env(
 /// The environment script of the natively built `mrtwin_msgs` (`scripts/setup-msgs.sh`):
 /// `$MRTWIN_MSGS_ENV`, else `<repo>/.msgs/env.sh`.
 pub fn msgs_env() -> PathBuf {
-    let p = std::env::var_os("MRTWIN_MSGS_ENV")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| repo_root().join(".msgs/env.sh"));
-    assert!(
-        p.is_file(),
-        "mrtwin_msgs built with rosidl not found at {}: run `bash scripts/setup-msgs.sh` \
-         (scripts/test-all.sh does)",
-        p.display()
-    );
-    p
+    set_up_file(
+        "MRTWIN_MSGS_ENV",
+        ".msgs/env.sh",
+        "the environment of mrtwin_msgs built with rosidl,",
+        "scripts/setup-msgs.sh",
+    )
 }
 
 /// Runs a Python script in the environment of [`msgs_env`] (its venv's Python, which
