@@ -231,6 +231,10 @@ impl TwinNodeParams {
             "two_chamber.fluid.yield_step_velocity_m_s",
             fluid.yield_step_velocity_m_s,
         )?;
+        non_negative(
+            "estimator.settings.model_form_share",
+            self.estimator.settings.model_form_share,
+        )?;
         if self.conditioning.stuck_samples < 2 {
             return Err(InvalidParam {
                 key: "conditioning.stuck_samples",
@@ -349,6 +353,21 @@ mod tests {
         let p = parse("    two_chamber:\n      fluid:\n        yield_step_share: 0.2\n").unwrap();
         p.validate().unwrap();
         assert_eq!(p.two_chamber.fluid.yield_step_share, 0.2);
+    }
+
+    #[test]
+    fn a_negative_or_nan_model_form_share_is_refused_by_its_key() {
+        for bad in ["-0.5", ".nan"] {
+            let p = parse(&format!(
+                "    estimator:\n      settings:\n        model_form_share: {bad}\n"
+            ))
+            .unwrap();
+            let e = p.validate().unwrap_err();
+            assert_eq!(e.key, "estimator.settings.model_form_share");
+        }
+        let p = parse("    estimator:\n      settings:\n        model_form_share: 0.5\n").unwrap();
+        p.validate().unwrap();
+        assert_eq!(p.estimator.settings.model_form_share, 0.5);
     }
 
     #[test]
