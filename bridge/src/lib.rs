@@ -12,11 +12,15 @@
 //!   build, so one parameter file reads the same whatever the build holds.
 //! - [`params`]: the parameters a node serves through a middleware's own tools
 //!   ([`params::ParamService`]; the ROS 2 adapter serves them as ROS 2 parameters).
+//! - `foxglove` (feature `foxglove`): a Foxglove WebSocket server, the live view of a
+//!   twin, behind the same [`transport::Transport`] interface (publish only).
 //! - [`wake`]: the [`wake::Doorbell`] an adapter rings when a message arrives, so the loop
 //!   that reads it sleeps until then.
 
 pub mod bag;
 pub mod csv;
+#[cfg(feature = "foxglove")]
+pub mod foxglove;
 pub mod iceoryx2;
 pub mod params;
 pub mod qos;

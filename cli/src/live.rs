@@ -37,6 +37,9 @@ pub struct DemoArgs {
     /// First element of every zenoh key (tests give their own; users keep `mrtwin`).
     #[arg(long, value_name = "PREFIX", default_value = "mrtwin")]
     pub key_prefix: String,
+    /// Serve the twin's Foxglove live view on `[HOST:]PORT` (a bare port is loopback).
+    #[arg(long, value_name = "[HOST:]PORT")]
+    pub foxglove: Option<String>,
 }
 
 /// One line per second.
@@ -223,6 +226,9 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     );
     println!("{}", look_commands(args, &twin, port));
     let mut node = TwinNode::new(twin.clone(), "/mrtwin_twin").context("start the twin node")?;
+    if let Some(spec) = &args.foxglove {
+        crate::foxglove::attach(&mut node, spec, "/mrtwin_twin")?;
+    }
     let mut stand_node =
         StandNode::new(stand.clone(), "/mrtwin_stand").context("start the stand node")?;
     let settings = TransportSettings::new(

@@ -15,6 +15,7 @@
 mod convert;
 mod diagnose;
 mod fit;
+mod foxglove;
 mod html;
 mod identify;
 mod info;

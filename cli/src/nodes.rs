@@ -28,6 +28,10 @@ pub struct NodeArgs {
     /// Print a live line per second.
     #[arg(long)]
     pub verbose: bool,
+    /// Twin node only: serve a Foxglove live view on `[HOST:]PORT` (a bare port is
+    /// loopback; 0 picks a free one).
+    #[arg(long, value_name = "[HOST:]PORT")]
+    pub foxglove: Option<String>,
     /// ROS 2 arguments: `--ros-args --params-file F -r __node:=N -r __ns:=NS -p k:=v`.
     #[arg(
         trailing_var_arg = true,
@@ -76,6 +80,9 @@ pub fn run_twin(args: &NodeArgs) -> Result<()> {
     if !ros.params_files.is_empty() {
         node.watch_params(params_file_watch(ros.clone()));
     }
+    if let Some(spec) = &args.foxglove {
+        crate::foxglove::attach(&mut node, spec, &name)?;
+    }
     tracing::info!(node = %name, "running (Ctrl-C stops)");
     let deadline = duration(args.duration)?.map(|d| Instant::now() + d);
     let verbose = args.verbose;
@@ -108,6 +115,9 @@ pub fn run_twin(args: &NodeArgs) -> Result<()> {
 
 /// `mrtwin stand`.
 pub fn run_stand(args: &NodeArgs) -> Result<()> {
+    if args.foxglove.is_some() {
+        bail!("--foxglove is served by the twin node (mrtwin node), not the stand");
+    }
     let ros = parse_ros_args(&args.ros_args)?;
     let params: StandParams = load_node_params(&ros, STAND_NODE)?;
     let name = ros.fully_qualified_name(STAND_NODE);

@@ -20,7 +20,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
 
-use mrtwin_tests::{free_port, repo_root, ChildGuard, TempDir};
+use mrtwin_tests::{await_line, free_port, repo_root, ChildGuard, TempDir};
 use serde_json::Value;
 
 /// ROS domain of this file's tests (live.rs uses 91 and 93, bridge's tests 41–43 and 78).
@@ -220,6 +220,169 @@ fn zenoh_subscriber_decodes_the_twins_outputs_estimates_and_diagnostics() {
         diag.keys().any(|k| k.ends_with("sensor stream")),
         "{diag:?}"
     );
+}
+
+/// The `ws://…` address a node or demo printed for its Foxglove live view.
+fn foxglove_url(node: &mut ChildGuard) -> String {
+    let lines = node.stdout_lines();
+    let (url, _) = await_line(&lines, Duration::from_secs(30), "Foxglove line", |l| {
+        let rest = l.strip_prefix("Foxglove live view: ")?;
+        Some(rest.split_whitespace().next()?.to_string())
+    });
+    // The rest of stdout is not read: keep the pipe drained so the child never blocks.
+    std::thread::spawn(move || lines.iter().for_each(drop));
+    url
+}
+
+/// What every live view carries, whoever serves it.
+fn assert_live_view(v: &Value, out: &str, namespace: &str) {
+    let channels: Vec<&str> = v["channels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(Value::as_str)
+        .collect();
+    let mut expected: Vec<String> = [
+        "sensor/sample",
+        "twin/fv_loop",
+        "twin/output",
+        "twin/predicted_force",
+        "twin/yield_estimate",
+    ]
+    .iter()
+    .map(|t| format!("{namespace}/{t}"))
+    .collect();
+    expected.push("/diagnostics".into());
+    expected.sort();
+    assert_eq!(channels, expected, "{out}");
+    // Every loop point is the sample and the twin output of its stamp, bit for bit.
+    assert_eq!(v["mismatches"], 0, "{out}");
+    let points = v["loop_points"].as_u64().unwrap();
+    assert!(
+        v["counts"]["fv_loop_checked"].as_u64().unwrap() >= points * 9 / 10,
+        "most loop points were checked against their sample and output: {out}"
+    );
+    let range = &v["velocity_range"];
+    assert!(
+        range[0].as_f64().unwrap() < -0.01 && range[1].as_f64().unwrap() > 0.01,
+        "the loop spans both stroke directions: {out}"
+    );
+    // A damper dissipates: force and velocity mostly share their sign (PHYSICS.md signs).
+    assert!(v["dissipating_fraction"].as_f64().unwrap() > 0.8, "{out}");
+    // The twin follows the stand's damper: residual small against the force.
+    assert!(
+        v["rms_residual"].as_f64().unwrap() < 0.05 * v["rms_force"].as_f64().unwrap(),
+        "{out}"
+    );
+    let tau0 = v["tau0"].as_f64().expect("a yield estimate");
+    assert!(tau0 > 0.0 && tau0 < 1e6, "τ0 {tau0} Pa");
+    let diag = v["diagnostics"].as_object().expect("a diagnostics array");
+    assert!(
+        diag.keys().any(|k| k.ends_with("sensor stream")) && diag.values().all(valid_level),
+        "{diag:?}"
+    );
+}
+
+#[test]
+#[cfg(all(
+    feature = "ros2",
+    feature = "zenoh",
+    feature = "iceoryx2",
+    feature = "foxglove"
+))]
+fn foxglove_client_watches_the_demo_twin_live() {
+    let _serial = serial();
+    let prefix = format!("mrtwin_fx{}", std::process::id());
+    let mut demo = ChildGuard::spawn(mrtwin().args([
+        "demo",
+        "--duration",
+        "60",
+        "--domain-id",
+        DOMAIN,
+        "--key-prefix",
+        &prefix,
+        "--foxglove",
+        "0",
+    ]));
+    let url = foxglove_url(&mut demo);
+    assert!(
+        url.starts_with("ws://127.0.0.1:"),
+        "a bare port listens on loopback: {url}"
+    );
+    let out = run_python_example(
+        "foxglove-client/client.py",
+        &[
+            "--url",
+            &url,
+            "--count",
+            "3000",
+            "--timeout",
+            "30",
+            "--json",
+        ],
+        Duration::from_secs(45),
+    );
+    stop(demo, "mrtwin demo");
+    let v = summary(&out);
+    assert_eq!(v["server"], "mrtwin /mrtwin_twin", "{out}");
+    assert_live_view(&v, &out, "");
+}
+
+#[test]
+#[cfg(all(feature = "zenoh", feature = "foxglove"))]
+fn foxglove_client_watches_mrtwin_node_under_its_namespace() {
+    let _serial = serial();
+    let port = free_port();
+    let damper = format!("exfx{}", std::process::id());
+    let twin_yaml = params_file("twin.yaml");
+    let mut node = ChildGuard::spawn(
+        mrtwin()
+            .args([
+                "node",
+                "--duration",
+                "90",
+                "--foxglove",
+                "127.0.0.1:0",
+                "--ros-args",
+                "--params-file",
+                &twin_yaml,
+                "-r",
+                "__ns:=/rig7",
+            ])
+            .args(zenoh_overrides(&damper, port, "listen")),
+    );
+    let url = foxglove_url(&mut node);
+    let stand_yaml = params_file("stand.node.yaml");
+    let stand = ChildGuard::spawn(
+        mrtwin()
+            .args([
+                "stand",
+                "--duration",
+                "90",
+                "--ros-args",
+                "--params-file",
+                &stand_yaml,
+            ])
+            .args(zenoh_overrides(&damper, port, "connect")),
+    );
+    let out = run_python_example(
+        "foxglove-client/client.py",
+        &[
+            "--url",
+            &url,
+            "--count",
+            "2000",
+            "--timeout",
+            "30",
+            "--json",
+        ],
+        Duration::from_secs(45),
+    );
+    stop(stand, "mrtwin stand");
+    stop(node, "mrtwin node");
+    let v = summary(&out);
+    assert_eq!(v["server"], "mrtwin /rig7/mrtwin_twin", "{out}");
+    assert_live_view(&v, &out, "/rig7");
 }
 
 /// The example controller's binary, built the way `cargo run --release -p

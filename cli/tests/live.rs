@@ -22,7 +22,7 @@ use bridge::iceoryx2::controller::{run_controller, ControllerOptions};
 #[cfg(feature = "iceoryx2")]
 use bridge::iceoryx2::Iceoryx2Config;
 use mrtwin_tests::{
-    free_port, run_python, run_python_env, run_python_with_msgs, ChildGuard, TempDir,
+    await_line, free_port, run_python, run_python_env, run_python_with_msgs, ChildGuard, TempDir,
 };
 
 /// The live tests start several processes each and check timing (staleness within 2 s,
@@ -632,7 +632,6 @@ print(dict(n))
 #[test]
 #[cfg(all(feature = "ros2", feature = "zenoh", feature = "iceoryx2"))]
 fn a_stock_zenoh_peer_sees_the_demo_with_the_command_it_prints() {
-    use std::io::{BufRead, BufReader};
     let _serial = serial();
     // The test's own key prefix and domain; everything else is what a user gets.
     let prefix = format!("mrtwin_look{}", std::process::id());
@@ -645,32 +644,11 @@ fn a_stock_zenoh_peer_sees_the_demo_with_the_command_it_prints() {
         "--key-prefix",
         &prefix,
     ]));
-    let stdout = demo
-        .0
-        .as_mut()
-        .and_then(|c| c.stdout.take())
-        .expect("stdout");
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
-            if tx.send(line).is_err() {
-                break;
-            }
-        }
-    });
-    let mut printed = Vec::new();
-    let deadline = std::time::Instant::now() + Duration::from_secs(30);
+    let lines = demo.stdout_lines();
     // The first live line comes after the commands: by then the twin publishes.
-    while !printed.iter().any(|l: &String| l.starts_with("t=")) {
-        let left = deadline.saturating_duration_since(std::time::Instant::now());
-        match rx.recv_timeout(left) {
-            Ok(line) => printed.push(line),
-            Err(e) => panic!(
-                "demo printed no live line within 30 s ({e}):\n{}",
-                printed.join("\n")
-            ),
-        }
-    }
+    let ((), printed) = await_line(&lines, Duration::from_secs(30), "live line", |l| {
+        l.starts_with("t=").then_some(())
+    });
     let command = printed
         .iter()
         .find_map(|l| l.trim().strip_prefix("python3 -c "))

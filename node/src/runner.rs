@@ -112,6 +112,9 @@ pub struct TwinNode {
     inbox: Vec<Message>,
     transports: Vec<(TransportKind, Box<dyn Transport>)>,
     input: usize,
+    /// Watch-only adapters (the Foxglove live view): every message published, and every
+    /// sample taken, just before the outputs for it.
+    viewers: Vec<Box<dyn Transport>>,
     #[cfg(feature = "iceoryx2")]
     control: Option<bridge::iceoryx2::ControlServer>,
     low_latency: bool,
@@ -177,6 +180,7 @@ impl TwinNode {
             inbox: Vec::new(),
             transports,
             input,
+            viewers: Vec::new(),
             #[cfg(feature = "iceoryx2")]
             control,
             low_latency: params.low_latency,
@@ -253,6 +257,13 @@ impl TwinNode {
         self.core.pipeline()
     }
 
+    /// Add a watch-only adapter: it is given every message the node publishes and every
+    /// sample it takes (the samples go to no other transport). Its failures are logged and
+    /// counted like a transport's.
+    pub fn attach_viewer(&mut self, viewer: Box<dyn Transport>) {
+        self.viewers.push(viewer);
+    }
+
     /// Run until `stop`; `on_second` gets the live stats once per second.
     pub fn run(&mut self, stop: StopWhen<'_>, on_second: &mut dyn FnMut(&LiveStats)) -> LiveStats {
         let start = Instant::now();
@@ -327,6 +338,9 @@ impl TwinNode {
                 busy = true;
                 let out = self.core.on_sample(&SensorSample::from_msg(&s), now);
                 window.observe(&out.processed);
+                if !self.viewers.is_empty() {
+                    outbox.push(Message::Sample(s));
+                }
                 outbox.extend(out.into_messages());
             }
         }
@@ -365,13 +379,16 @@ impl TwinNode {
         false
     }
 
-    /// Publish every message of `outbox` on every transport; a failure is logged with
-    /// its transport and topic, counted, and does not stop the other publications.
+    /// Publish every message of `outbox` on every transport and viewer (samples on the
+    /// viewers only); a failure is logged with its transport and topic, counted, and does
+    /// not stop the other publications.
     fn publish(&mut self, outbox: &mut Vec<Message>) {
         for m in outbox.drain(..) {
-            for (kind, t) in &mut self.transports {
+            let is_output = m.topic() != Topic::Sample;
+            let transports = self.transports.iter_mut().filter(|_| is_output);
+            for t in transports.map(|(_, t)| t).chain(&mut self.viewers) {
                 if let Err(e) = t.publish(&m) {
-                    tracing::warn!(transport = %kind, topic = m.topic().ros_name(), error = %e, "publish failed");
+                    tracing::warn!(transport = t.name(), topic = m.topic().ros_name(), error = %e, "publish failed");
                     self.core.count_transport_error();
                 }
             }

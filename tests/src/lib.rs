@@ -228,6 +228,34 @@ pub fn free_port() -> u16 {
         .port()
 }
 
+/// Read `lines` until `pick` maps one to `Some`, at most `timeout`: that value and every
+/// line read. Panics with the lines read when the time passes or the stream ends first.
+pub fn await_line<T>(
+    lines: &std::sync::mpsc::Receiver<String>,
+    timeout: std::time::Duration,
+    what: &str,
+    mut pick: impl FnMut(&str) -> Option<T>,
+) -> (T, Vec<String>) {
+    let deadline = std::time::Instant::now() + timeout;
+    let mut seen = Vec::new();
+    loop {
+        let left = deadline.saturating_duration_since(std::time::Instant::now());
+        match lines.recv_timeout(left) {
+            Ok(line) => {
+                let found = pick(&line);
+                seen.push(line);
+                if let Some(v) = found {
+                    return (v, seen);
+                }
+            }
+            Err(e) => panic!(
+                "no {what} within {timeout:?} ({e}); printed:\n{}",
+                seen.join("\n")
+            ),
+        }
+    }
+}
+
 /// A child process that is killed when the guard drops (a failing test leaves nothing
 /// running).
 pub struct ChildGuard(pub Option<std::process::Child>);
@@ -273,6 +301,25 @@ impl ChildGuard {
             e.read_to_string(&mut err).ok();
         }
         (status.success(), out, err)
+    }
+
+    /// The child's stdout line by line on a channel (a thread reads it until it closes).
+    pub fn stdout_lines(&mut self) -> std::sync::mpsc::Receiver<String> {
+        use std::io::{BufRead, BufReader};
+        let stdout = self
+            .0
+            .as_mut()
+            .and_then(|c| c.stdout.take())
+            .expect("the child's stdout, not taken before");
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+                if tx.send(line).is_err() {
+                    break;
+                }
+            }
+        });
+        rx
     }
 
     /// Send SIGINT (Ctrl-C).
