@@ -8,7 +8,9 @@ Per record: samples; the fitted twin's replay RMS; what diagnose found; the upgr
 replay RMS and its ratio, against the ratio predicted by taking the variance diagnose's
 findings explained (held-out, unweighted) off the twin's residual, and diagnose's own ratio;
 diagnose's final held-out RMS; the wall time of fit, diagnose (with the upgrade) and the
-two replays. Records: two simulated two-chamber records (`mrtwin simulate`, nothing hidden
+two replays; and, over the same samples (every sample of the record, from diagnose's
+`--residuals` and the replay), the upgraded twin's RMS residual against diagnose's final
+model's. Records: two simulated two-chamber records (`mrtwin simulate`, nothing hidden
 and gas spring + seal friction hidden), the four UTFSM tests (five currents each, as in
 scripts/diagnose-real.py) and Dyke's ransim_u. Standard library only.
 """
@@ -48,12 +50,31 @@ def replay_rms(binary, rec, params, out):
     return math.sqrt(sum(x * x for x in e) / len(e)), dt
 
 
+def same_samples_rms(residuals_csv, replay_csv):
+    """(diagnose's final model, the replayed twin) RMS residual over the same samples: every
+    row of the record where both are finite (diagnose's `--residuals` and the replay's CSV
+    have one row per sample, in order; their times are checked)."""
+    with open(residuals_csv) as f:
+        dg = list(csv.DictReader(f))
+    with open(replay_csv) as f:
+        rp = list(csv.DictReader(f))
+    assert len(dg) == len(rp), (len(dg), len(rp))
+    a = b = n = 0.0
+    for x, y in zip(dg, rp):
+        assert abs(float(x["time_s"]) - float(y["time_s"])) < 1e-9, (x["time_s"], y["time_s"])
+        e1 = float(x["force_N"]) - float(x["final_N"])
+        e2 = float(y["residual_N"])
+        if math.isfinite(e1) and math.isfinite(e2):
+            a, b, n = a + e1 * e1, b + e2 * e2, n + 1
+    return math.sqrt(a / n), math.sqrt(b / n)
+
+
 def chain(name, rec, binary, tmp):
     twin, up = os.path.join(tmp, "twin.yaml"), os.path.join(tmp, "up.yaml")
-    dj = os.path.join(tmp, "d.json")
+    dj, res = os.path.join(tmp, "d.json"), os.path.join(tmp, "res.csv")
     t_fit = run([binary, "fit", rec, "--out", twin])
     t_dg = run([binary, "diagnose", rec, "--params", twin, "--write-params", up,
-                "--json", dj, "--report", os.devnull])
+                "--json", dj, "--report", os.devnull, "--residuals", res])
     with open(dj) as f:
         d = json.load(f)
     r_twin, t1 = replay_rms(binary, rec, twin, os.path.join(tmp, "r0.csv"))
@@ -61,9 +82,11 @@ def chain(name, rec, binary, tmp):
     claim = d["twin"]["predicted_replay_ratio"]
     raw = d["twin"]["diagnose_holdout_ratio"]
     found = ", ".join(x["effect"] for x in d["findings"]) or "—"
-    return "| %s | %d | %.1f | %s | %.1f | %.3f | %.3f | %.3f | %.1f | %.1f + %.1f + %.1f s |" % (
+    dg_same, up_same = same_samples_rms(res, os.path.join(tmp, "r1.csv"))
+    return ("| %s | %d | %.1f | %s | %.1f | %.3f | %.3f | %.3f | %.1f | %.2f vs %.2f | "
+            "%.1f + %.1f + %.1f s |") % (
         name, d["samples"], r_twin, found, r_up, r_up / r_twin, claim, raw,
-        d["final"]["holdout_rmse_unweighted_N"], t_fit, t_dg, t1 + t2)
+        d["final"]["holdout_rmse_unweighted_N"], up_same, dg_same, t_fit, t_dg, t1 + t2)
 
 
 def main():
@@ -74,8 +97,8 @@ def main():
     real = _real()
     print("| record | samples | fitted twin: replay RMS (N) | found | upgraded: replay RMS (N) "
           "| replay ratio | predicted ratio | diagnose's own ratio | diagnose final held-out (N) "
-          "| fit + diagnose + replays |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+          "| same samples: upgraded twin vs diagnose final (N) | fit + diagnose + replays |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         records = []
         for name, effects, extra, seed in [
