@@ -59,6 +59,11 @@ pub struct DiagnoseArgs {
     /// Family-wise false-alarm rate per record (`calibrated`).
     #[arg(long, value_name = "ALPHA", default_value_t = ::diagnose::Calibration::default().family_alpha)]
     pub family_alpha: f64,
+    /// The least held-out gain a finding needs (`calibrated`): the fall of the held-out
+    /// mean square, in units of the record's force-noise variance σ_F². 0 reports every
+    /// effect the bootstrap accepts, however little it changes the prediction.
+    #[arg(long, value_name = "X", default_value_t = ::diagnose::Calibration::default().min_holdout_gain_noise)]
+    pub min_holdout_gain: f64,
     /// The twin to diagnose (parameter file, section `mrtwin_twin`, as `mrtwin fit` writes):
     /// its effects are part of the baseline and the candidates are the effects it lacks.
     /// The JSON gains a `twin` entry with the twin's replay residual on the recording.
@@ -136,6 +141,12 @@ pub fn run(args: &DiagnoseArgs) -> Result<()> {
             args.family_alpha
         );
     }
+    if !(args.min_holdout_gain.is_finite() && args.min_holdout_gain >= 0.0) {
+        bail!(
+            "--min-holdout-gain {} must be a number ≥ 0 (units of σ_F²)",
+            args.min_holdout_gain
+        );
+    }
     if args.replicates < 8 {
         bail!(
             "--replicates {}: the calibration needs at least 8",
@@ -155,6 +166,7 @@ pub fn run(args: &DiagnoseArgs) -> Result<()> {
         calibration: ::diagnose::Calibration {
             replicates: args.replicates,
             family_alpha: args.family_alpha,
+            min_holdout_gain_noise: args.min_holdout_gain,
             ..Default::default()
         },
         ..Default::default()

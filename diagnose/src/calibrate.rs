@@ -48,6 +48,12 @@ pub struct Calibration {
     pub screen_fraction: f64,
     /// Worker threads for the replicates (0: all cores).
     pub threads: usize,
+    /// The least a finding must take off the held-out mean square, in units of the
+    /// record's force-noise variance (σ_F², the high-frequency estimate of
+    /// [`crate::measure`]): an effect explaining less than (0.14 σ_F)² of held-out blocks
+    /// changes no prediction an engineer could see, and on the proving ground such
+    /// "findings" were the baseline's misfit taken up (docs/diagnose.md §5).
+    pub min_holdout_gain_noise: f64,
 }
 
 impl Default for Calibration {
@@ -58,6 +64,7 @@ impl Default for Calibration {
             seed: 0x6d72_7477_696e,
             screen_fraction: 0.25,
             threads: 0,
+            min_holdout_gain_noise: 0.02,
         }
     }
 }

