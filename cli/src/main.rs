@@ -8,6 +8,7 @@
 //! * `info`: what a CSV recording holds, after strict input checks.
 //! * `diagnose`: find the physics a model left out, add it, prove the held-out fit improves.
 //! * `convert`: CSV recording ↔ rosbag2 MCAP bag.
+//! * `fleet`: N stands and N twins in one process over zenoh, a central monitor (feature `zenoh`).
 //! * `identify`: the Skalski–Zalewski identification of n, R0 (5.3) and (5.5) from recordings.
 //!
 //! Errors are printed as `error: …` with their causes, and the exit code is 1.
@@ -15,6 +16,8 @@
 mod convert;
 mod diagnose;
 mod fit;
+#[cfg(feature = "zenoh")]
+mod fleet;
 mod foxglove;
 mod html;
 mod identify;
@@ -79,6 +82,9 @@ enum Command {
     Identify(identify::IdentifyArgs),
     /// Calibrate the twin's own model to recordings; write it as a parameter file the nodes read.
     Fit(fit::FitArgs),
+    /// N simulated stands and N twins in one process over zenoh, with a central monitor.
+    #[cfg(feature = "zenoh")]
+    Fleet(fleet::FleetArgs),
 }
 
 impl Command {
@@ -91,6 +97,8 @@ impl Command {
             Command::Demo(_) => "mrtwin_demo",
             Command::Launch(_) => "mrtwin_launch",
             Command::Replay(_) => "mrtwin_replay",
+            #[cfg(feature = "zenoh")]
+            Command::Fleet(_) => "mrtwin_fleet",
             _ => "mrtwin",
         }
     }
@@ -116,6 +124,8 @@ fn main() -> ExitCode {
         Command::Convert(args) => convert::run(args),
         Command::Identify(args) => identify::run(args),
         Command::Fit(args) => fit::run(args),
+        #[cfg(feature = "zenoh")]
+        Command::Fleet(args) => fleet::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -905,3 +905,70 @@ fn a_transport_left_out_of_the_build_is_named_with_its_feature() {
         );
     }
 }
+
+#[test]
+#[cfg(feature = "zenoh")]
+fn a_fleet_of_three_twins_started_by_a_launch_file_keeps_every_damper_in_step() {
+    let _serial = serial();
+    let dir = TempDir::new("fleet");
+    let json = dir.path("fleet.json");
+    let prefix = format!("mrtwin_fleet{}", std::process::id());
+    let launch = dir.path("fleet.launch.yaml");
+    write(
+        &launch,
+        &format!(
+            "launch:\n  - node:\n      pkg: mrtwin\n      exec: fleet\n      name: fleet_a\n      namespace: /site7\n      args: --dampers 3 --duration 3 --key-prefix {prefix} --json {}\n",
+            json.display()
+        ),
+    );
+    let o = mrtwin()
+        .args(["launch", launch.to_str().unwrap(), "--duration", "30"])
+        .output()
+        .expect("launch the fleet");
+    assert!(
+        o.status.success(),
+        "fleet failed: {}\n{}",
+        String::from_utf8_lossy(&o.stderr),
+        String::from_utf8_lossy(&o.stdout)
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).expect("the fleet's JSON"))
+            .expect("JSON");
+    let dampers = v["dampers"].as_array().expect("one entry per damper");
+    assert_eq!(dampers.len(), 3, "{v}");
+    let mut names = Vec::new();
+    for d in dampers {
+        let n = |k: &str| d[k].as_u64().unwrap_or_else(|| panic!("{k} in {d}"));
+        // 3 s at 1 kHz, every sample stepped by its own twin and its output seen centrally.
+        assert!(n("sent") >= 2900 && n("sent") <= 3001, "{d}");
+        assert_eq!(n("stepped"), n("sent"), "{d}");
+        assert_eq!(n("received"), n("sent"), "{d}");
+        assert_eq!(n("errors"), 0, "{d}");
+        names.push(d["node"].as_str().unwrap().to_string());
+    }
+    // Each twin under the launch file's namespace, one per damper.
+    assert_eq!(
+        names,
+        [
+            "/site7/d001/mrtwin_twin",
+            "/site7/d002/mrtwin_twin",
+            "/site7/d003/mrtwin_twin"
+        ]
+    );
+    assert_eq!(v["dampers_without_loss"], 3, "{v}");
+    let cpu = v["cpu_percent"].as_f64().unwrap();
+    assert!(cpu > 0.0 && cpu <= 100.0, "{v}");
+    let p50 = v["latency_ms"]["p50"].as_f64().unwrap();
+    let p99 = v["latency_ms"]["p99"].as_f64().unwrap();
+    assert!(p50 > 0.0 && p50 <= p99, "{v}");
+    // The fleet is set by its flags: a parameter override is refused, not ignored.
+    let o = mrtwin()
+        .args(["fleet", "--dampers", "1", "--ros-args", "-p", "noise_n:=3"])
+        .output()
+        .expect("run fleet");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("fleet takes no parameter files, -p overrides"),
+        "{err}"
+    );
+}

@@ -4,7 +4,7 @@
 //! launch:
 //!   - node:
 //!       pkg: mrtwin
-//!       exec: stand            # stand | twin | record
+//!       exec: stand            # stand | twin | record | fleet
 //!       name: mrtwin_stand
 //!       namespace: /lab
 //!       param:
@@ -135,7 +135,8 @@ pub fn load_launch(path: &Path) -> Result<LaunchFile, ConfigError> {
 
 /// Parse and check the text of a launch file; `source` names it in errors.
 ///
-/// Beyond the types, each node must be `pkg: mrtwin` with `exec` stand, twin or record,
+/// Beyond the types, each node must be `pkg: mrtwin` with `exec` stand, twin, record or
+/// fleet,
 /// and everything that becomes its `--ros-args` must be what [`crate::parse_ros_args`]
 /// reads back as written: a non-empty `name` and `namespace`, parameter names without
 /// empty `.`-separated parts or `:=`, remappings between non-empty names (`from` without
@@ -163,11 +164,11 @@ pub fn parse_launch(text: &str, source: &str) -> Result<LaunchFile, ConfigError>
         if n.pkg != "mrtwin" {
             return Err(bad("pkg", None, format!("pkg '{}' is not mrtwin", n.pkg)));
         }
-        if !["stand", "twin", "record"].contains(&n.exec.as_str()) {
+        if !["stand", "twin", "record", "fleet"].contains(&n.exec.as_str()) {
             return Err(bad(
                 "exec",
                 None,
-                format!("exec '{}' is not stand, twin or record", n.exec),
+                format!("exec '{}' is not stand, twin, record or fleet", n.exec),
             ));
         }
         if n.name

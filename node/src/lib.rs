@@ -14,6 +14,8 @@
 //!   and record are thin loops around it.
 //! * [`runner`]: the live twin node: the core over the transports, with the wall clock
 //!   for STALE and the iceoryx2 control service.
+//! * [`fleet`]: many dampers in one process: N stands in one paced loop, N twin cores in
+//!   another, each damper on its own transport.
 //! * [`stand`]: the simulated test stand as a live, real-time paced sensor stream, with
 //!   optional faults.
 
@@ -22,6 +24,7 @@ pub mod config;
 pub mod core;
 pub mod diagnostics;
 pub mod fit;
+pub mod fleet;
 pub mod parameters;
 pub mod pipeline;
 pub mod runner;

@@ -208,19 +208,12 @@ impl StandNode {
         stop: Option<&AtomicBool>,
         duration: Option<Duration>,
     ) -> Result<StandSummary, NodeError> {
-        let p = self.params.clone();
-        let mut model = build(p.model, &p.model_params(), p.model.effects(p.effects))?;
-        let programme = p.programme();
-        let cycle = programme.sample_count().max(1);
-        let noise = Normal::new(0.0, p.noise_n.max(1e-300)).expect("σ > 0");
-        let mut rng = rand::rngs::StdRng::seed_from_u64(p.seed);
-        let epoch0 = SystemTime::now()
-            .duration_since(UNIX_EPOCH)
-            .map_or(0.0, |d| d.as_secs_f64());
+        let mut player = StandPlayer::new(&self.params)?;
+        player.set_epoch(wall_clock_s());
         let start = Instant::now();
-        let dt = 1.0 / p.rate_hz;
+        let dt = 1.0 / self.params.rate_hz;
         let mut summary = StandSummary::default();
-        let mut held: Option<SensorSample> = None;
+        let mut batch = Vec::new();
         for k in 0u64.. {
             let due = start + Duration::from_secs_f64(k as f64 * dt);
             if stop.is_some_and(|f| f.load(Ordering::Relaxed))
@@ -229,39 +222,8 @@ impl StandNode {
                 break;
             }
             pace(due, &mut summary);
-            let (_, _, input) = programme.input_at(k as usize % cycle);
-            let out = if k == 0 {
-                model.reset(&input);
-                model.step(&input, 0.0)
-            } else {
-                model.step(&input, dt)
-            };
+            player.next(&mut batch);
             summary.generated += 1;
-            let t_rel = k as f64 * dt;
-            let f = &p.faults;
-            if f.silence_at_s
-                .is_some_and(|t0| t_rel >= t0 && t_rel < t0 + f.silence_for_s)
-            {
-                continue;
-            }
-            let sample = SensorSample {
-                time_s: epoch0 + t_rel,
-                displacement_m: input.displacement_m,
-                velocity_m_s: input.velocity_m_s,
-                force_n: out.force_n
-                    + if p.noise_n > 0.0 {
-                        noise.sample(&mut rng)
-                    } else {
-                        0.0
-                    },
-                current_a: input.current_a,
-                temperature_c: if p.temperature_channel {
-                    out.fluid_temperature_c
-                } else {
-                    f64::NAN
-                },
-            };
-            let batch = f.apply(sample, &mut rng, &mut held);
             self.publish(&batch, &mut summary);
         }
         Ok(summary)
@@ -284,9 +246,114 @@ impl StandNode {
     }
 }
 
+/// The stand's stream without the pacing or the transports: its model driven through the
+/// programme, one sample per [`StandPlayer::next`] (sample `k` stamped `epoch + k / rate`,
+/// the epoch set by the pacing loop),
+/// noise and faults applied. The stand node paces one; the fleet paces many in one loop.
+pub struct StandPlayer {
+    params: StandParams,
+    model: Box<dyn twin::DamperModel>,
+    programme: Programme,
+    cycle: usize,
+    noise: Normal<f64>,
+    rng: rand::rngs::StdRng,
+    epoch0: f64,
+    held: Option<SensorSample>,
+    k: u64,
+}
+
+impl StandPlayer {
+    /// Build the model of `params` (validated first). Stamps start at
+    /// [`StandPlayer::set_epoch`]'s epoch.
+    pub fn new(params: &StandParams) -> Result<Self, NodeError> {
+        params.validate()?;
+        let p = params.clone();
+        let model = build(p.model, &p.model_params(), p.model.effects(p.effects))?;
+        let programme = p.programme();
+        let cycle = programme.sample_count().max(1);
+        let noise = Normal::new(0.0, p.noise_n.max(1e-300)).expect("σ > 0");
+        let rng = rand::rngs::StdRng::seed_from_u64(p.seed);
+        Ok(Self {
+            params: p,
+            model,
+            programme,
+            cycle,
+            noise,
+            rng,
+            epoch0: 0.0,
+            held: None,
+            k: 0,
+        })
+    }
+
+    /// Stamp sample `k` at `epoch_s + k / rate` (wall clock, s since the Unix epoch): the
+    /// instant the caller's pacing starts from. Without it, the first sample's wall clock.
+    pub fn set_epoch(&mut self, epoch_s: f64) {
+        self.epoch0 = epoch_s;
+    }
+
+    /// The damper's name.
+    pub fn damper(&self) -> &str {
+        &self.params.damper
+    }
+
+    /// Step the model by one sample period and put into `batch` (cleared first) what the
+    /// sensor stream carries for it: nothing (dropped, or in a silence), the sample, or
+    /// two or three after a swap or a duplicate.
+    pub fn next(&mut self, batch: &mut Vec<SensorSample>) {
+        batch.clear();
+        let p = &self.params;
+        let k = self.k;
+        self.k += 1;
+        let dt = 1.0 / p.rate_hz;
+        let (_, _, input) = self.programme.input_at(k as usize % self.cycle);
+        let out = if k == 0 {
+            if self.epoch0 == 0.0 {
+                self.epoch0 = wall_clock_s();
+            }
+            self.model.reset(&input);
+            self.model.step(&input, 0.0)
+        } else {
+            self.model.step(&input, dt)
+        };
+        let t_rel = k as f64 * dt;
+        let f = &p.faults;
+        if f.silence_at_s
+            .is_some_and(|t0| t_rel >= t0 && t_rel < t0 + f.silence_for_s)
+        {
+            return;
+        }
+        let sample = SensorSample {
+            time_s: self.epoch0 + t_rel,
+            displacement_m: input.displacement_m,
+            velocity_m_s: input.velocity_m_s,
+            force_n: out.force_n
+                + if p.noise_n > 0.0 {
+                    self.noise.sample(&mut self.rng)
+                } else {
+                    0.0
+                },
+            current_a: input.current_a,
+            temperature_c: if p.temperature_channel {
+                out.fluid_temperature_c
+            } else {
+                f64::NAN
+            },
+        };
+        batch.extend(f.apply(sample, &mut self.rng, &mut self.held));
+    }
+}
+
+/// Seconds since the Unix epoch, now.
+pub fn wall_clock_s() -> f64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64())
+}
+
 /// Sleep, then spin for the last 200 µs, until `due`; a sample already late is counted
 /// in the summary's lateness.
-fn pace(due: Instant, summary: &mut StandSummary) {
+pub fn pace(due: Instant, summary: &mut StandSummary) {
     let now = Instant::now();
     if due > now {
         let wait = due - now;

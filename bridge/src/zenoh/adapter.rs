@@ -83,6 +83,47 @@ pub struct ZenohTransport {
 /// Samples queued per subscription before zenoh's receiving thread waits for the reader.
 const QUEUE: usize = 65_536;
 
+/// One zenoh session shared by many dampers' adapters (a fleet in one process: one
+/// session, one set of links, N dampers' key expressions). Dropping the last adapter and
+/// this handle closes it.
+#[derive(Clone)]
+pub struct ZenohSession {
+    session: Session,
+    cfg: ZenohConfig,
+}
+
+impl std::fmt::Debug for ZenohSession {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ZenohSession")
+            .field("zid", &self.session.zid())
+            .finish_non_exhaustive()
+    }
+}
+
+impl ZenohSession {
+    /// Open a session with `cfg`.
+    pub fn open(cfg: &ZenohConfig) -> Result<Self, TransportError> {
+        let session = zenoh::open(session_config(cfg)?)
+            .wait()
+            .map_err(|e| TransportError::new(NAME, "open session", e))?;
+        Ok(Self {
+            session,
+            cfg: cfg.clone(),
+        })
+    }
+
+    /// An adapter for `damper` on this session: its publishers and subscribers, keyed
+    /// `<key_prefix>/<damper>/<topic>` as [`ZenohTransport::new`]'s.
+    pub fn transport(
+        &self,
+        damper: &str,
+        publish: &[Topic],
+        subscribe: &[Topic],
+    ) -> Result<ZenohTransport, TransportError> {
+        ZenohTransport::declare(self.session.clone(), &self.cfg, damper, publish, subscribe)
+    }
+}
+
 impl ZenohTransport {
     /// Open a session and declare the publishers and subscribers of `damper`.
     pub fn new(
@@ -94,6 +135,17 @@ impl ZenohTransport {
         let session = zenoh::open(session_config(cfg)?)
             .wait()
             .map_err(|e| TransportError::new(NAME, "open session", e))?;
+        Self::declare(session, cfg, damper, publish, subscribe)
+    }
+
+    /// Declare the publishers and subscribers of `damper` on `session`.
+    fn declare(
+        session: Session,
+        cfg: &ZenohConfig,
+        damper: &str,
+        publish: &[Topic],
+        subscribe: &[Topic],
+    ) -> Result<Self, TransportError> {
         let mut publishers = HashMap::new();
         for &t in publish {
             let key = cfg.key(damper, t);
@@ -131,7 +183,8 @@ impl ZenohTransport {
         })
     }
 
-    /// Close the session (also done on drop).
+    /// Close the session (also done on drop of its last handle; on a [`ZenohSession`]'s
+    /// adapter this closes the session for every adapter on it).
     pub fn close(self) {
         let _ = self.session.close().wait();
     }
