@@ -90,6 +90,37 @@ fn zenoh_overrides(damper: &str, port: u16, endpoint_key: &str) -> Vec<String> {
     ]
 }
 
+/// `mrtwin node` with the example twin file and this test's zenoh overrides (listening on
+/// `port`): `flags` before `--ros-args`, `ros` after the file (e.g. `-r __ns:=/rig7`).
+fn example_twin(damper: &str, port: u16, flags: &[&str], ros: &[&str]) -> ChildGuard {
+    let twin_yaml = params_file("twin.yaml");
+    ChildGuard::spawn(
+        mrtwin()
+            .args(["node", "--duration", "90"])
+            .args(flags)
+            .args(["--ros-args", "--params-file", &twin_yaml])
+            .args(ros)
+            .args(zenoh_overrides(damper, port, "listen")),
+    )
+}
+
+/// `mrtwin stand` with the example stand file, connecting to the twin on `port`.
+fn example_stand(damper: &str, port: u16) -> ChildGuard {
+    let stand_yaml = params_file("stand.node.yaml");
+    ChildGuard::spawn(
+        mrtwin()
+            .args([
+                "stand",
+                "--duration",
+                "90",
+                "--ros-args",
+                "--params-file",
+                &stand_yaml,
+            ])
+            .args(zenoh_overrides(damper, port, "connect")),
+    )
+}
+
 fn valid_level(v: &Value) -> bool {
     v.as_u64().is_some_and(|l| l <= 3)
 }
@@ -153,32 +184,8 @@ fn zenoh_subscriber_decodes_the_twins_outputs_estimates_and_diagnostics() {
     let _serial = serial();
     let port = free_port();
     let damper = format!("exz{}", std::process::id());
-    let twin_yaml = params_file("twin.yaml");
-    let node = ChildGuard::spawn(
-        mrtwin()
-            .args([
-                "node",
-                "--duration",
-                "90",
-                "--ros-args",
-                "--params-file",
-                &twin_yaml,
-            ])
-            .args(zenoh_overrides(&damper, port, "listen")),
-    );
-    let stand_yaml = params_file("stand.node.yaml");
-    let stand = ChildGuard::spawn(
-        mrtwin()
-            .args([
-                "stand",
-                "--duration",
-                "90",
-                "--ros-args",
-                "--params-file",
-                &stand_yaml,
-            ])
-            .args(zenoh_overrides(&damper, port, "connect")),
-    );
+    let node = example_twin(&damper, port, &[], &[]);
+    let stand = example_stand(&damper, port);
     let endpoint = format!("tcp/127.0.0.1:{port}");
     let out = run_python_example(
         "zenoh-subscriber/subscriber.py",
@@ -334,37 +341,14 @@ fn foxglove_client_watches_mrtwin_node_under_its_namespace() {
     let _serial = serial();
     let port = free_port();
     let damper = format!("exfx{}", std::process::id());
-    let twin_yaml = params_file("twin.yaml");
-    let mut node = ChildGuard::spawn(
-        mrtwin()
-            .args([
-                "node",
-                "--duration",
-                "90",
-                "--foxglove",
-                "127.0.0.1:0",
-                "--ros-args",
-                "--params-file",
-                &twin_yaml,
-                "-r",
-                "__ns:=/rig7",
-            ])
-            .args(zenoh_overrides(&damper, port, "listen")),
+    let mut node = example_twin(
+        &damper,
+        port,
+        &["--foxglove", "127.0.0.1:0"],
+        &["-r", "__ns:=/rig7"],
     );
     let url = foxglove_url(&mut node);
-    let stand_yaml = params_file("stand.node.yaml");
-    let stand = ChildGuard::spawn(
-        mrtwin()
-            .args([
-                "stand",
-                "--duration",
-                "90",
-                "--ros-args",
-                "--params-file",
-                &stand_yaml,
-            ])
-            .args(zenoh_overrides(&damper, port, "connect")),
-    );
+    let stand = example_stand(&damper, port);
     let out = run_python_example(
         "foxglove-client/client.py",
         &[

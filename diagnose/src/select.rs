@@ -515,6 +515,9 @@ struct Judged {
     /// the local yield force: that scaled fit (the fluid's shape, not a seal;
     /// [`fluid_shape_step`]).
     fluid_shape: Option<Fit>,
+    /// A seal friction whose presliding displacement is at its bound and which no scaled
+    /// step beats: calibrated with the others, never accepted ([`seal_is_resolved`]).
+    unresolved_seal: bool,
 }
 
 impl Judged {
@@ -614,6 +617,12 @@ fn judge(
         None
     };
     ci_ok &= fluid_shape.is_none();
+    // A seal is told from the fluid by its presliding range alone: a step in sgn v that
+    // neither scaled step beats is still the fluid's misfit near reversal more often than a
+    // seal (seal_is_resolved). It stays in the bootstrap's joint alternative (it takes up
+    // that misfit, which would otherwise widen every candidate's null) but is not accepted.
+    let unresolved_seal =
+        e == Effect::SealFriction && fluid_shape.is_none() && !seal_is_resolved(&cand);
     let r0 = residual(d, &current.force);
     let r1 = residual(d, &cand.force);
     let s0 = region_stats(d, reg, &r0, true);
@@ -660,6 +669,7 @@ fn judge(
         effect: e,
         partner,
         fluid_shape,
+        unresolved_seal,
         fit: cand,
         evidence: Evidence {
             holdout_rmse_before_n: before,
@@ -904,7 +914,7 @@ fn round_verdicts(
                 }
                 None => calibrate::screened(t, dp(&j), cal, alpha),
             };
-            let pass = eligible(&j) && c.passes() && c.replicates > 0;
+            let pass = eligible(&j) && !j.unresolved_seal && c.passes() && c.replicates > 0;
             let shape_pass = shape_eligible(&j) && c.passes() && c.replicates > 0;
             Verdict {
                 pass,
@@ -1046,7 +1056,13 @@ fn forward_selection(
                 effect: j.id(),
                 evidence,
                 parameters,
-                passed: j.passed,
+                // The interval rule reads "physical and resolved": an unresolved seal fails it.
+                passed: [
+                    j.passed[0],
+                    j.passed[1],
+                    j.passed[2] && !j.unresolved_seal,
+                    j.passed[3],
+                ],
                 accepted: Some(j.candidate()) == best_candidate,
             });
         }
@@ -1535,7 +1551,9 @@ fn presliding_resolved(xp: f64, se: f64) -> bool {
 /// seeds 105, 134 and 294 the constant step still fits better than either by 360–920 in
 /// the statistic of [`crate::calibrate::statistic`]: the fluid's low-speed rise there is
 /// not proportional to the fitted viscous coefficient either (docs/diagnose.md, Limits).
-/// Returns `None` when it is a seal's, or the better scaled fit that beats it.
+/// Returns `None` when it is a seal's or no scaled step beats it (a step at the bound
+/// that none beats is then refused as a seal by [`seal_is_resolved`]), or the better
+/// scaled fit that beats it.
 fn fluid_shape_step(d: &Prepared, cand: &Fit) -> Option<Fit> {
     let k = cand.layout.index(Effect::SealFriction)?;
     if presliding_resolved(cand.theta[k + 1], cand.se[k + 1]) {
@@ -1552,6 +1570,19 @@ fn fluid_shape_step(d: &Prepared, cand: &Fit) -> Option<Fit> {
         })
         .filter(|scaled| scaled.train_sse <= cand.train_sse)
         .min_by(|a, b| a.train_sse.total_cmp(&b.train_sse))
+}
+
+/// Whether a fitted seal friction has a resolved presliding displacement, which is what
+/// tells a seal from the fluid: a step in sgn v (the displacement at its lower bound) is a
+/// common offset of every knot's yield force and a shape near v = 0 that the fluid's
+/// misfit near reversal takes as well. On the 300-record proving ground (2026-11-26) the
+/// frictions accepted with the displacement at its bound were 2 true (seeds 14, 68) and 5
+/// false (105, 119, 134, 243, 294, all in non-Bingham fluids, where the constant step beat
+/// both scaled ones); those with a resolved displacement 28 true and 1 false.
+fn seal_is_resolved(cand: &Fit) -> bool {
+    cand.layout
+        .index(Effect::SealFriction)
+        .is_some_and(|k| presliding_resolved(cand.theta[k + 1], cand.se[k + 1]))
 }
 
 /// Smallest deflection of a chamber compliance at the record's peak force, as a share of
