@@ -7,11 +7,12 @@ MessageData frame (opcode 1, subscription id u32, log time u64, payload): `cdr` 
 with the `ros2msg` schema the server advertised (mcap_ros2's dynamic decoder, as
 Foxglove's), `json` channels as JSON. Prints a line a second, checks that every
 `twin/fv_loop` point agrees with the sample and the twin output of its stamp, and exits 0
-once --count loop points, a yield estimate and a diagnostics array have arrived (1 when
+once --count loop points, a finite yield estimate and a diagnostics array have arrived (1 when
 --timeout passes first).
 """
 import argparse
 import json
+import math
 import struct
 import sys
 import time
@@ -66,7 +67,8 @@ def on_message(topic, msg, log_time):
             for s in sorted(by_stamp)[:2500]:
                 del by_stamp[s]
     elif key == "twin/yield_estimate":
-        estimate = msg
+        if math.isfinite(msg.tau0):  # NaN until the current at hand is identified
+            estimate = msg
     elif key == "diagnostics":
         diagnostics = {s.name: s.level for s in msg.status}
 
