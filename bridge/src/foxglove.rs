@@ -86,7 +86,7 @@ fn error(context: &str, e: impl ToString) -> TransportError {
 }
 
 /// `ns` + `name` as an absolute channel name (`/diagnostics` stays global).
-fn channel_name(namespace: &str, name: &str) -> String {
+pub fn channel_name(namespace: &str, name: &str) -> String {
     if name.starts_with('/') {
         return name.to_string();
     }
@@ -190,10 +190,11 @@ impl Transport for FoxgloveServer {
 
     fn publish(&mut self, msg: &Message) -> Result<(), TransportError> {
         let topic = msg.topic();
-        let Some(channel) = self.channels.get(&topic).cloned() else {
+        if !self.channels.contains_key(&topic) {
             return Ok(()); // `/clock`: not part of the live view
-        };
+        }
         let meta = self.metadata(msg);
+        let channel = &self.channels[&topic];
         if channel.has_sinks() {
             channel.log_with_meta(&msg.to_cdr(), meta);
         }

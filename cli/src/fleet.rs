@@ -12,7 +12,7 @@
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use bridge::transport::{Message, Topic, Transport};
@@ -22,6 +22,7 @@ use node::config::TwinNodeParams;
 use node::fleet::{FleetStands, FleetTwins};
 use node::runner::StopWhen;
 use node::stand::StandParams;
+use numerics::stats::quantile;
 use serde_json::json;
 
 /// Arguments of `mrtwin fleet`.
@@ -71,12 +72,6 @@ fn cpu_seconds() -> f64 {
     tv(ru.ru_utime) + tv(ru.ru_stime)
 }
 
-fn wall_now_s() -> f64 {
-    SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0.0, |d| d.as_secs_f64())
-}
-
 /// What the monitor saw of one damper: outputs received and their delays (sample stamp to
 /// arrival, wall clock) \[s\].
 #[derive(Default)]
@@ -119,7 +114,7 @@ fn spawn_monitor(
                     continue;
                 }
                 got = true;
-                let now = wall_now_s();
+                let now = node::stand::wall_clock_s();
                 let mut seen = seen.lock().unwrap_or_else(|p| p.into_inner());
                 for m in &inbox {
                     if let Message::Output(o) = m {
@@ -136,13 +131,6 @@ fn spawn_monitor(
             bridge::wake::wait_until(Instant::now() + Duration::from_millis(5));
         }
     }))
-}
-
-fn quantile(sorted: &[f64], q: f64) -> f64 {
-    if sorted.is_empty() {
-        return f64::NAN;
-    }
-    sorted[((q * (sorted.len() - 1) as f64).round() as usize).min(sorted.len() - 1)]
 }
 
 /// `mrtwin fleet`.
@@ -171,10 +159,7 @@ pub fn run(args: &FleetArgs) -> Result<()> {
         .unwrap_or("/fleet")
         .trim_end_matches('/');
     let stop = crate::stop::stop_flag()?;
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .context("find a free loopback port for zenoh")?
-        .port();
+    let port = crate::live::free_port()?;
     let endpoint = format!("tcp/127.0.0.1:{port}");
     let base = ZenohConfig {
         key_prefix: args.key_prefix.clone(),
@@ -291,8 +276,8 @@ pub fn run(args: &FleetArgs) -> Result<()> {
         "dampers_without_loss": lossless,
         "stand_max_lateness_ms": stand_summary.max_lateness_s * 1e3,
         "latency_ms": {
-            "p50": quantile(&all_delays, 0.5) * 1e3,
-            "p99": quantile(&all_delays, 0.99) * 1e3,
+            "p50": quantile(&all_delays, 0.5).map_or(f64::NAN, |d| d * 1e3),
+            "p99": quantile(&all_delays, 0.99).map_or(f64::NAN, |d| d * 1e3),
             "max": all_delays.last().map_or(f64::NAN, |d| d * 1e3),
         },
     });

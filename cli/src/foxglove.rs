@@ -43,19 +43,10 @@ pub fn attach(node: &mut TwinNode, spec: &str, node_fqn: &str) -> Result<u16> {
     println!(
         "Foxglove live view: ws://{url_host}:{port} (Foxglove → Open connection → Foxglove WebSocket; \
          F–v loop: Plot panel, X axis {}.velocity_m_s)",
-        node_fqn_channel(namespace)
+        bridge::foxglove::channel_name(namespace, bridge::foxglove::FV_LOOP)
     );
     node.attach_viewer(Box::new(server));
     Ok(port)
-}
-
-#[cfg(feature = "foxglove")]
-fn node_fqn_channel(namespace: &str) -> String {
-    format!(
-        "{}/{}",
-        namespace.trim_end_matches('/'),
-        bridge::foxglove::FV_LOOP
-    )
 }
 
 /// Without the `foxglove` feature: an error that names it.

@@ -60,7 +60,8 @@ pub fn live_line(s: &LiveStats) -> String {
     )
 }
 
-fn free_port() -> Result<u16> {
+/// A free loopback TCP port (for a zenoh listener).
+pub(crate) fn free_port() -> Result<u16> {
     Ok(TcpListener::bind("127.0.0.1:0")
         .context("find a free loopback port for zenoh")?
         .local_addr()?

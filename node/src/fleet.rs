@@ -84,11 +84,7 @@ impl FleetTwins {
         }
         loop {
             let now = Instant::now();
-            if stop
-                .flag
-                .is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed))
-                || stop.deadline.is_some_and(|d| now >= d)
-            {
+            if stop.reached(now) {
                 break;
             }
             let t = now.duration_since(start).as_secs_f64();

@@ -88,7 +88,8 @@ pub struct StopWhen<'a> {
 }
 
 impl StopWhen<'_> {
-    fn reached(&self, now: Instant) -> bool {
+    /// Whether the flag is set or the deadline has passed at `now`.
+    pub(crate) fn reached(&self, now: Instant) -> bool {
         self.flag.is_some_and(|f| f.load(Ordering::Relaxed))
             || self.deadline.is_some_and(|d| now >= d)
     }
