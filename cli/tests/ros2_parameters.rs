@@ -1,12 +1,13 @@
-//! The twin's ROS 2 parameters (issue 14) against rclpy's `AsyncParameterClient` with
+//! The nodes' ROS 2 parameters (issue 14) against rclpy's `AsyncParameterClient` with
 //! Fast DDS (the interop venv, no ROS install): the twin inside `mrtwin demo` and
-//! `mrtwin node`. Each test has its own ROS domain (96, 97) and every wait is bounded.
+//! `mrtwin node`, and `mrtwin stand`. Each test has its own ROS domain (96, 97, 98) and
+//! every wait is bounded.
 #![cfg(feature = "ros2")]
 
 use std::process::Command;
 use std::time::Duration;
 
-use mrtwin_tests::{run_python_env, ChildGuard, TempDir};
+use mrtwin_tests::{run_python_env, run_python_with_msgs, ChildGuard, TempDir};
 use serde_json::Value;
 
 /// Two live processes at 1 kHz each: one test at a time on a 2-core machine.
@@ -115,4 +116,90 @@ fn rclpy_reads_and_sets_the_parameters_of_mrtwin_node() {
     let v = client("97", "/rig/mrtwin_twin", false);
     drop(node);
     check_common(&v);
+}
+
+/// argv: target node, namespace. Reads the stand's samples as native `mrtwin_msgs`.
+const STAND_CLIENT: &str = include_str!("ros2_stand_parameters_client.py");
+
+#[test]
+fn rclpy_reads_and_sets_the_parameters_of_mrtwin_stand_and_the_samples_follow() {
+    let _serial = serial();
+    let dir = TempDir::new("ros2_parameters_stand");
+    let params = dir.path("stand.yaml");
+    std::fs::write(
+        &params,
+        "mrtwin_stand:\n  ros__parameters:\n    damper: standparams\n    transports: [ros2]\n    ros2:\n      domain_id: 98\n",
+    )
+    .expect("write parameter file");
+    let stand = ChildGuard::spawn(mrtwin().args([
+        "stand",
+        "--duration",
+        "60",
+        "--ros-args",
+        "--params-file",
+        params.to_str().unwrap(),
+        "-r",
+        "__ns:=/standrig",
+    ]));
+    let out = run_python_with_msgs(
+        STAND_CLIENT,
+        &["/standrig/mrtwin_stand", "/standrig"],
+        &[
+            ("ROS_DOMAIN_ID", "98"),
+            ("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp"),
+        ],
+        Duration::from_secs(120),
+    );
+    drop(stand);
+    let v: Value = serde_json::from_str(out.lines().last().unwrap_or_default())
+        .unwrap_or_else(|e| panic!("rclpy JSON ({e}):\n{out}"));
+    eprintln!("{v}");
+    assert_eq!(v["services"], true, "{v}");
+    // The programme, model and faults are served; the pacing, seed and name are not.
+    for (key, served) in [
+        ("currents_a", true),
+        ("noise_n", true),
+        ("faults.drop_probability", true),
+        ("two_chamber.load_cell_offset_n", true),
+        ("rate_hz", false),
+        ("seed", false),
+        ("damper", false),
+    ] {
+        assert_eq!(v["has"][key], served, "{key}: {v}");
+    }
+    assert_eq!(
+        v["currents_before"],
+        serde_json::json!([0.5, 1.0, 2.0]),
+        "{v}"
+    );
+    assert_eq!(v["described"], "noise_n", "{v}");
+    // Refused with their reasons, and nothing changes.
+    assert_eq!(v["bad_noise"]["ok"], false, "{v}");
+    assert!(
+        v["bad_noise"]["reason"].as_str().unwrap().contains("≥ 0"),
+        "{v}"
+    );
+    assert_eq!(v["bad_rate"]["ok"], false, "{v}");
+    assert_eq!(v["bad_model"]["ok"], false, "{v}");
+    assert!(
+        v["bad_model"]["reason"].as_str().unwrap().contains("magic"),
+        "{v}"
+    );
+    assert_eq!(v["noise_after_bad"], v["noise_before"], "{v}");
+    // The stream before: the default programme's first current.
+    assert!(v["before"].as_u64().unwrap() > 1000, "{v}");
+    assert_eq!(v["currents_seen_before"], serde_json::json!([0.5]), "{v}");
+    // A new programme from the next sample: every sample after the first 1.75 A one is at
+    // 1.75 A (samples already published when the set was answered may come before it).
+    assert_eq!(v["currents_set"]["ok"], true, "{v}");
+    assert_eq!(v["currents_get"], serde_json::json!([1.75]), "{v}");
+    assert!(v["after"].as_u64().unwrap() > 1000, "{v}");
+    assert!(v["old_after_set"].as_u64().unwrap() <= 5, "{v}");
+    assert_eq!(v["new_then_all"], true, "{v}");
+    // A model parameter: a 50 kN load-cell offset, from the next sample.
+    assert!(v["old_force_max"].as_f64().unwrap() < 30_000.0, "{v}");
+    assert_eq!(v["offset_set"]["ok"], true, "{v}");
+    assert!(v["after_offset"].as_u64().unwrap() > 1000, "{v}");
+    assert!(v["unshifted_after_set"].as_u64().unwrap() <= 5, "{v}");
+    assert_eq!(v["shifted_then_all"], true, "{v}");
 }

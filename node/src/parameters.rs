@@ -1,96 +1,140 @@
-//! The twin node's settings as ROS 2 parameters (`ros2 param list|get|set|describe`,
-//! rclpy's `AsyncParameterClient`), served by the ROS 2 adapter
-//! ([`bridge::params::ParamService`]).
+//! A node's settings as ROS 2 parameters (`ros2 param list|get|set|describe`, rclpy's
+//! `AsyncParameterClient`), served by the ROS 2 adapter ([`bridge::params::ParamService`]):
+//! the twin's ([`TwinParameters`]) and the stand's ([`StandParameters`]), by one path.
 //!
 //! - **Names** are the parameter file's keys, dotted: `health.residual_warn_sigma`,
 //!   `estimator.settings.forgetting_factor`, `two_chamber.bulk_modulus_pa`,
-//!   `two_chamber.fluid.yield_stress_pa`, `model`, `effects`, … Every key that can change
-//!   while the node runs is declared (health thresholds, estimator settings, conditioning,
-//!   periods, model and effects, every model's parameters). The restart-only keys
-//!   ([`RESTART_ONLY`]: damper, transports, input, control service, low latency,
-//!   middleware settings) are not.
+//!   `two_chamber.fluid.yield_stress_pa`, `model`, `effects`, `currents_a`,
+//!   `faults.drop_probability`, … Every key that can change while the node runs is
+//!   declared. The restart-only keys ([`ServedSettings::RESTART_ONLY`]: the damper, the
+//!   transports, the middleware settings, …) are not.
 //! - **Types:** numbers are `double` (counts are `integer`), lists of numbers
 //!   `double_array`, names `string`, switches `bool`. A set of another type is refused by
 //!   the parameter store.
 //! - **A set** builds the whole parameter set with the new value and checks it as a
-//!   reloaded parameter file is checked ([`TwinNodeParams::validate`], the model and its
-//!   effects built), plus: a number must be finite. A bad value is refused with the
-//!   reason and nothing changes. An accepted one is taken by the node's loop before it
-//!   steps its next sample ([`crate::core::TwinCore::reload`]: the estimator keeps its
-//!   state when its settings are unchanged); `/diagnostics` then shows the new
-//!   parameter version.
+//!   reloaded parameter file is checked ([`ServedSettings::check`]: validation, the model
+//!   and its effects built), plus: a number must be finite. A bad value is refused with
+//!   the reason and nothing changes. An accepted one is taken by the node's loop before
+//!   it steps its next sample (the twin: [`crate::core::TwinCore::reload`], the estimator
+//!   keeps its state when its settings are unchanged, and `/diagnostics` then shows the
+//!   new parameter version; the stand: [`crate::stand::StandPlayer::retune`]).
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 
 use bridge::params::{ParamService, ParamValue};
+use serde::de::DeserializeOwned;
+use serde::Serialize;
 use serde_norway::{Number, Value};
 
 use crate::config::TwinNodeParams;
 use crate::pipeline::TwinPipeline;
+use crate::stand::StandParams;
 
-/// Top-level keys that take effect only at a restart: not served as parameters.
-pub const RESTART_ONLY: [&str; 8] = [
-    "damper",
-    "transports",
-    "input",
-    "control_service",
-    "low_latency",
-    "zenoh",
-    "ros2",
-    "iceoryx2",
-];
+/// A node's parameter set as served: its restart-only keys, and the check a whole set
+/// passes before it is taken.
+pub trait ServedSettings: Serialize + DeserializeOwned + Clone + PartialEq + Send {
+    /// Top-level keys that take effect only at a restart: not served.
+    const RESTART_ONLY: &'static [&'static str];
+    /// Would the node take this parameter set? `Err`: why not.
+    fn check(&self) -> Result<(), String>;
+}
 
-/// The twin's parameters, shared by the ROS 2 adapter (which checks and sets) and the
+impl ServedSettings for TwinNodeParams {
+    const RESTART_ONLY: &'static [&'static str] = &[
+        "damper",
+        "transports",
+        "input",
+        "control_service",
+        "low_latency",
+        "zenoh",
+        "ros2",
+        "iceoryx2",
+    ];
+
+    /// Validated, and its pipeline (model, effects, estimator) built.
+    fn check(&self) -> Result<(), String> {
+        let cfg = self.pipeline_config().map_err(|e| e.to_string())?;
+        TwinPipeline::new(cfg).map_err(|e| e.to_string())?;
+        Ok(())
+    }
+}
+
+impl ServedSettings for StandParams {
+    /// The pacing (`rate_hz`) and the random stream (`seed`) are fixed for a run.
+    const RESTART_ONLY: &'static [&'static str] = &[
+        "damper",
+        "transports",
+        "rate_hz",
+        "seed",
+        "zenoh",
+        "ros2",
+        "iceoryx2",
+    ];
+
+    /// Validated, and its model with its effects built.
+    fn check(&self) -> Result<(), String> {
+        crate::stand::StandPlayer::new(self)
+            .map(|_| ())
+            .map_err(|e| e.to_string())
+    }
+}
+
+/// The twin node's served parameters.
+pub type TwinParameters = Served<TwinNodeParams>;
+/// The stand node's served parameters.
+pub type StandParameters = Served<StandParams>;
+
+/// A node's parameters, shared by the ROS 2 adapter (which checks and sets) and the
 /// node's loop (which takes what was set).
-pub struct TwinParameters {
+pub struct Served<P> {
     /// The parameter set with every accepted value.
-    current: Mutex<TwinNodeParams>,
+    current: Mutex<P>,
     /// Set since the loop last took it.
     pending: AtomicBool,
 }
 
-impl TwinParameters {
+impl<P: ServedSettings> Served<P> {
     /// Serve `params`.
-    pub fn new(params: &TwinNodeParams) -> Arc<Self> {
+    pub fn new(params: &P) -> Arc<Self> {
         Arc::new(Self {
             current: Mutex::new(params.clone()),
             pending: AtomicBool::new(false),
         })
     }
 
-    fn lock(&self) -> MutexGuard<'_, TwinNodeParams> {
+    fn lock(&self) -> MutexGuard<'_, P> {
         self.current.lock().unwrap_or_else(|p| p.into_inner())
     }
 
     /// The parameter set after a set the loop has not taken yet (one atomic load when
     /// there is none).
-    pub fn take_pending(&self) -> Option<TwinNodeParams> {
+    pub fn take_pending(&self) -> Option<P> {
         (self.pending.load(Ordering::Acquire) && self.pending.swap(false, Ordering::AcqRel))
             .then(|| self.lock().clone())
     }
 
     /// The node took parameters from elsewhere (a reloaded file): later sets start from
     /// them.
-    pub fn taken(&self, params: &TwinNodeParams) {
+    pub fn taken(&self, params: &P) {
         *self.lock() = params.clone();
     }
 }
 
-impl ParamService for TwinParameters {
+impl<P: ServedSettings> ParamService for Served<P> {
     fn declared(&self) -> Vec<(String, ParamValue)> {
-        declared(&self.lock())
+        declared(&*self.lock())
     }
 
     fn check(&self, name: &str, value: &ParamValue) -> Result<(), String> {
-        with_value(&self.lock(), name, value).map(|_| ())
+        with_value(&*self.lock(), name, value).map(|_| ())
     }
 
     /// A value equal to the present one changes nothing (the parameter store sets every
     /// declared value once when the node starts).
     fn set(&self, name: &str, value: &ParamValue) -> Result<(), String> {
         let mut current = self.lock();
-        let new = with_value(&current, name, value)?;
+        let new = with_value(&*current, name, value)?;
         if new != *current {
             *current = new;
             self.pending.store(true, Ordering::Release);
@@ -100,12 +144,12 @@ impl ParamService for TwinParameters {
 }
 
 /// Every parameter of `params` that can change while the node runs, with its value.
-pub fn declared(params: &TwinNodeParams) -> Vec<(String, ParamValue)> {
+pub fn declared<P: ServedSettings>(params: &P) -> Vec<(String, ParamValue)> {
     let mut out = Vec::new();
     if let Ok(Value::Mapping(m)) = serde_norway::to_value(params) {
         for (k, v) in &m {
             match k.as_str() {
-                Some(k) if !RESTART_ONLY.contains(&k) => flatten(k, v, &mut out),
+                Some(k) if !P::RESTART_ONLY.contains(&k) => flatten(k, v, &mut out),
                 _ => {}
             }
         }
@@ -176,11 +220,11 @@ fn to_yaml(v: &ParamValue) -> Result<Value, String> {
 
 /// `params` with parameter `name` set to `value`, checked as a reloaded file is; `Err`:
 /// the reason, naming the parameter.
-pub fn with_value(
-    params: &TwinNodeParams,
+pub fn with_value<P: ServedSettings>(
+    params: &P,
     name: &str,
     value: &ParamValue,
-) -> Result<TwinNodeParams, String> {
+) -> Result<P, String> {
     let reason = |e: String| {
         if e.contains(&format!("'{name}'")) {
             e
@@ -189,7 +233,7 @@ pub fn with_value(
         }
     };
     let top = name.split('.').next().unwrap_or_default();
-    if RESTART_ONLY.contains(&top) {
+    if P::RESTART_ONLY.contains(&top) {
         return Err(reason("takes effect only at a restart".into()));
     }
     let mut tree = serde_norway::to_value(params).map_err(|e| reason(e.to_string()))?;
@@ -206,9 +250,8 @@ pub fn with_value(
         return Err(reason("is a section, not a parameter".into()));
     }
     *at = to_yaml(value).map_err(reason)?;
-    let new: TwinNodeParams = serde_norway::from_value(tree).map_err(|e| reason(e.to_string()))?;
-    let cfg = new.pipeline_config().map_err(|e| reason(e.to_string()))?;
-    TwinPipeline::new(cfg).map_err(|e| reason(e.to_string()))?;
+    let new: P = serde_norway::from_value(tree).map_err(|e| reason(e.to_string()))?;
+    new.check().map_err(reason)?;
     Ok(new)
 }
 
@@ -246,7 +289,10 @@ mod tests {
         assert!(d.iter().any(|(n, _)| n.starts_with("estimator.settings.")));
         for (n, _) in &d {
             let top = n.split('.').next().unwrap();
-            assert!(!RESTART_ONLY.contains(&top), "{n} is restart-only");
+            assert!(
+                !TwinNodeParams::RESTART_ONLY.contains(&top),
+                "{n} is restart-only"
+            );
         }
     }
 
@@ -300,5 +346,31 @@ mod tests {
             find(&s.declared(), "stale_after_s"),
             Some(&ParamValue::Double(2.0))
         );
+    }
+
+    #[test]
+    fn the_stand_serves_its_programme_model_and_faults_but_not_its_pacing() {
+        let p = StandParams::default();
+        let d = declared(&p);
+        assert_eq!(
+            find(&d, "currents_a"),
+            Some(&ParamValue::Doubles(p.currents_a.clone()))
+        );
+        assert!(find(&d, "faults.drop_probability").is_some());
+        assert!(find(&d, "two_chamber.bulk_modulus_pa").is_some());
+        for restart_only in ["rate_hz", "seed", "damper", "transports"] {
+            assert!(find(&d, restart_only).is_none(), "{restart_only} served");
+            assert!(with_value(&p, restart_only, &ParamValue::Double(1.0))
+                .unwrap_err()
+                .contains("restart"));
+        }
+        let e = with_value(&p, "noise_n", &ParamValue::Double(-1.0)).unwrap_err();
+        assert!(e.contains("noise_n") && e.contains("≥ 0"), "{e}");
+        let e = with_value(&p, "model", &ParamValue::Text("magic".into())).unwrap_err();
+        assert!(e.contains("magic"), "{e}");
+        let s = StandParameters::new(&p);
+        s.set("currents_a", &ParamValue::Doubles(vec![1.75]))
+            .unwrap();
+        assert_eq!(s.take_pending().map(|q| q.currents_a), Some(vec![1.75]));
     }
 }

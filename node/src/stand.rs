@@ -3,8 +3,13 @@
 //! with force-sensor noise, published as `DamperSample` on the chosen transports. Faults
 //! can be injected to exercise the twin: dropped, duplicated, swapped (out-of-order) and
 //! NaN samples, and a period of silence.
+//!
+//! With the ROS 2 transport the stand serves its settings as ROS 2 parameters
+//! ([`crate::parameters::StandParameters`]); a set takes effect at the next sample
+//! ([`StandPlayer::retune`]).
 
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use bridge::transport::{Message, Topic, Transport};
@@ -20,8 +25,9 @@ use twin::EffectsChoice;
 
 use crate::conditioning::SensorSample;
 use crate::config::InvalidParam;
+use crate::parameters::StandParameters;
 use crate::runner::NodeError;
-use crate::transports::{open, TransportKind, TransportSettings};
+use crate::transports::{open_serving, TransportKind, TransportSettings};
 
 /// Faults to inject (probabilities per sample).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
@@ -182,10 +188,13 @@ pub struct StandSummary {
 pub struct StandNode {
     params: StandParams,
     transports: Vec<Box<dyn Transport>>,
+    /// The parameters served to the middleware's tools (ROS 2 parameters); a set is
+    /// taken before the next sample.
+    served: Arc<StandParameters>,
 }
 
 impl StandNode {
-    /// Open the transports.
+    /// Open the transports (the ROS 2 one serves the stand's parameters).
     pub fn new(params: StandParams, node_name: &str) -> Result<Self, NodeError> {
         params.validate()?;
         let settings = TransportSettings::new(
@@ -195,11 +204,23 @@ impl StandNode {
             &params.zenoh,
             &params.iceoryx2,
         );
+        let served = StandParameters::new(&params);
         let mut transports = Vec::new();
         for &k in &params.transports {
-            transports.push(open(k, &settings, &[Topic::Sample], &[])?);
+            let serve: Arc<dyn bridge::params::ParamService> = served.clone();
+            transports.push(open_serving(
+                k,
+                &settings,
+                &[Topic::Sample],
+                &[],
+                Some(serve),
+            )?);
         }
-        Ok(Self { params, transports })
+        Ok(Self {
+            params,
+            transports,
+            served,
+        })
     }
 
     /// Play until `stop` or `duration` (wall clock).
@@ -222,6 +243,10 @@ impl StandNode {
                 break;
             }
             pace(due, &mut summary);
+            if let Some(params) = self.served.take_pending() {
+                player.retune(&params)?;
+                tracing::info!("took a ROS 2 parameter set at sample {k}");
+            }
             player.next(&mut batch);
             summary.generated += 1;
             self.publish(&batch, &mut summary);
@@ -260,6 +285,11 @@ pub struct StandPlayer {
     epoch0: f64,
     held: Option<SensorSample>,
     k: u64,
+    /// The sample at which the present programme started (0, or the sample after a
+    /// retune that changed it).
+    programme_start: u64,
+    /// The model starts afresh at the next sample (the first, or after a retune).
+    restart: bool,
 }
 
 impl StandPlayer {
@@ -283,7 +313,49 @@ impl StandPlayer {
             epoch0: 0.0,
             held: None,
             k: 0,
+            programme_start: 0,
+            restart: true,
         })
+    }
+
+    /// Take new parameters (checked as at [`StandPlayer::new`]) from the next sample on;
+    /// the clock, the random stream and a held (swapped) sample go on. A change of the
+    /// model, its parameters or effects rebuilds the model; a change of the programme
+    /// (amplitude, frequencies, currents, segment length, ambient temperature) starts the
+    /// new programme from its first segment. Either way the model starts afresh at the
+    /// next sample, as at the first. Noise, faults and the temperature channel change
+    /// without a restart. The sample rate and the seed are fixed for a run (a change is
+    /// refused).
+    pub fn retune(&mut self, params: &StandParams) -> Result<(), NodeError> {
+        params.validate()?;
+        let p = &self.params;
+        if (params.rate_hz, params.seed) != (p.rate_hz, p.seed) {
+            return Err(InvalidParam {
+                key: "rate_hz",
+                reason: "the sample rate and the seed are fixed for a run".into(),
+            }
+            .into());
+        }
+        if (params.model, params.effects, params.model_params())
+            != (p.model, p.effects, p.model_params())
+        {
+            self.model = build(
+                params.model,
+                &params.model_params(),
+                params.model.effects(params.effects),
+            )?;
+            self.restart = true;
+        }
+        let programme = params.programme();
+        if programme != self.programme {
+            self.cycle = programme.sample_count().max(1);
+            self.programme = programme;
+            self.programme_start = self.k;
+            self.restart = true;
+        }
+        self.noise = Normal::new(0.0, params.noise_n.max(1e-300)).expect("σ > 0");
+        self.params = params.clone();
+        Ok(())
     }
 
     /// Stamp sample `k` at `epoch_s + k / rate` (wall clock, s since the Unix epoch): the
@@ -306,11 +378,12 @@ impl StandPlayer {
         let k = self.k;
         self.k += 1;
         let dt = 1.0 / p.rate_hz;
-        let (_, _, input) = self.programme.input_at(k as usize % self.cycle);
-        let out = if k == 0 {
-            if self.epoch0 == 0.0 {
-                self.epoch0 = wall_clock_s();
-            }
+        let at = (k - self.programme_start) as usize % self.cycle;
+        let (_, _, input) = self.programme.input_at(at);
+        if k == 0 && self.epoch0 == 0.0 {
+            self.epoch0 = wall_clock_s();
+        }
+        let out = if std::mem::take(&mut self.restart) {
             self.model.reset(&input);
             self.model.step(&input, 0.0)
         } else {
@@ -452,5 +525,64 @@ mod tests {
         let distinct: std::collections::BTreeSet<u64> = a.iter().map(|t| t.abs() as u64).collect();
         let dropped = 1.0 - distinct.len() as f64 / 20_000.0;
         assert!((dropped - 0.1).abs() < 0.02, "dropped {dropped}");
+    }
+
+    fn played(player: &mut StandPlayer, n: usize) -> Vec<SensorSample> {
+        let mut batch = Vec::new();
+        (0..n)
+            .flat_map(|_| {
+                player.next(&mut batch);
+                batch.clone()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_retune_takes_effect_at_the_next_sample_and_keeps_the_clock() {
+        let p = StandParams {
+            noise_n: 0.0,
+            ..StandParams::default()
+        };
+        let mut player = StandPlayer::new(&p).unwrap();
+        player.set_epoch(100.0);
+        let before = played(&mut player, 500);
+        assert!(before.iter().all(|s| s.current_a == 0.5));
+        // Same parameters: nothing restarts, the stream goes on as if untouched.
+        let mut untouched = StandPlayer::new(&p).unwrap();
+        untouched.set_epoch(100.0);
+        let reference = played(&mut untouched, 1000);
+        player.retune(&p).unwrap();
+        // (compared as text: the temperature channel is NaN, not measured)
+        assert_eq!(
+            format!("{:?}", played(&mut player, 500)),
+            format!("{:?}", &reference[500..])
+        );
+        // A new programme (one current) from the next sample, started at its beginning.
+        let q = StandParams {
+            currents_a: vec![1.75],
+            ..p.clone()
+        };
+        player.retune(&q).unwrap();
+        let after = played(&mut player, 10);
+        assert!(after.iter().all(|s| s.current_a == 1.75), "{after:?}");
+        assert_eq!(after[0].displacement_m, 0.0, "the programme starts at rest");
+        assert!((after[0].time_s - (100.0 + 1000.0 / p.rate_hz)).abs() < 1e-9);
+        // A model parameter: a 50 kN load-cell offset shows from the next sample.
+        let mut r = q.clone();
+        r.two_chamber.load_cell_offset_n += 50_000.0;
+        let last = played(&mut player, 1)[0].force_n;
+        player.retune(&r).unwrap();
+        let shifted = played(&mut player, 1)[0].force_n;
+        assert!(shifted - last > 40_000.0, "{last} → {shifted}");
+        // The pacing and the random stream are fixed for a run.
+        let fast = StandParams {
+            rate_hz: 2000.0,
+            ..q.clone()
+        };
+        assert!(player
+            .retune(&fast)
+            .unwrap_err()
+            .to_string()
+            .contains("rate_hz"));
     }
 }
