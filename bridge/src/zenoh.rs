@@ -23,7 +23,7 @@ use crate::transport::Topic;
 #[cfg(feature = "zenoh")]
 mod adapter;
 #[cfg(feature = "zenoh")]
-pub use adapter::{ZenohSession, ZenohTransport};
+pub use adapter::{TopicWatch, ZenohSession, ZenohTransport};
 
 /// How a zenoh session joins the network.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]

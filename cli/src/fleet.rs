@@ -40,9 +40,15 @@ pub struct FleetArgs {
     /// Write the per-damper counts and the CPU use as JSON.
     #[arg(long, value_name = "OUT.json")]
     pub json: Option<PathBuf>,
-    /// First element of every zenoh key (tests give their own).
+    /// First element(s) of every zenoh key (tests give their own; a site behind a router
+    /// gives its own, e.g. `mrtwin/siteA`).
     #[arg(long, value_name = "PREFIX", default_value = "mrtwin")]
     pub key_prefix: String,
+    /// A zenoh router the twins' session connects to as well (e.g. the site's router,
+    /// `tcp/127.0.0.1:7447`), so that their outputs and diagnostics reach a central
+    /// monitor (`mrtwin monitor`) through it. Repeat for several.
+    #[arg(long, value_name = "ENDPOINT")]
+    pub connect: Vec<String>,
     /// What a launch file passes (`exec: fleet`): `--ros-args -r __ns:=NS` puts the twins
     /// under `NS/<damper>/mrtwin_twin` (default `/fleet`); `__node` is the launch label.
     /// Parameter files, `-p` and other remappings are refused: the fleet is configured by
@@ -168,6 +174,7 @@ pub fn run(args: &FleetArgs) -> Result<()> {
     };
     let twins_session = ZenohSession::open(&ZenohConfig {
         listen: vec![endpoint.clone()],
+        connect: args.connect.clone(),
         ..base.clone()
     })
     .context("open the twins' zenoh session")?;

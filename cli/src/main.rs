@@ -9,6 +9,8 @@
 //! * `diagnose`: find the physics a model left out, add it, prove the held-out fit improves.
 //! * `convert`: CSV recording ↔ rosbag2 MCAP bag.
 //! * `fleet`: N stands and N twins in one process over zenoh, a central monitor (feature `zenoh`).
+//! * `monitor`: the central view of a fleet behind zenoh routers: every damper's level,
+//!   STALE when its outputs stop (feature `zenoh`).
 //! * `identify`: the Skalski–Zalewski identification of n, R0 (5.3) and (5.5) from recordings.
 //!
 //! Errors are printed as `error: …` with their causes, and the exit code is 1.
@@ -25,6 +27,8 @@ mod info;
 mod live;
 mod logging;
 mod loops;
+#[cfg(feature = "zenoh")]
+mod monitor;
 mod nodes;
 mod numbers;
 mod output;
@@ -85,6 +89,9 @@ enum Command {
     /// N simulated stands and N twins in one process over zenoh, with a central monitor.
     #[cfg(feature = "zenoh")]
     Fleet(fleet::FleetArgs),
+    /// The central view of a fleet behind zenoh routers: each damper's level, STALE when its outputs stop.
+    #[cfg(feature = "zenoh")]
+    Monitor(monitor::MonitorArgs),
 }
 
 impl Command {
@@ -99,6 +106,8 @@ impl Command {
             Command::Replay(_) => "mrtwin_replay",
             #[cfg(feature = "zenoh")]
             Command::Fleet(_) => "mrtwin_fleet",
+            #[cfg(feature = "zenoh")]
+            Command::Monitor(_) => "mrtwin_monitor",
             _ => "mrtwin",
         }
     }
@@ -126,6 +135,8 @@ fn main() -> ExitCode {
         Command::Fit(args) => fit::run(args),
         #[cfg(feature = "zenoh")]
         Command::Fleet(args) => fleet::run(args),
+        #[cfg(feature = "zenoh")]
+        Command::Monitor(args) => monitor::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -16,6 +16,9 @@
 //!   for STALE and the iceoryx2 control service.
 //! * [`fleet`]: many dampers in one process: N stands in one paced loop, N twin cores in
 //!   another, each damper on its own transport.
+//! * [`monitor`]: the central view of many dampers behind routers: STALE when a damper's
+//!   outputs stop arriving, its twin's own level otherwise.
+//! * [`parameters`]: the twin's and the stand's settings as ROS 2 parameters.
 //! * [`stand`]: the simulated test stand as a live, real-time paced sensor stream, with
 //!   optional faults.
 
@@ -25,6 +28,7 @@ pub mod core;
 pub mod diagnostics;
 pub mod fit;
 pub mod fleet;
+pub mod monitor;
 pub mod parameters;
 pub mod pipeline;
 pub mod runner;

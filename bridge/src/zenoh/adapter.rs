@@ -122,6 +122,72 @@ impl ZenohSession {
     ) -> Result<ZenohTransport, TransportError> {
         ZenohTransport::declare(self.session.clone(), &self.cfg, damper, publish, subscribe)
     }
+
+    /// Every damper's `topic` under this session's key prefix
+    /// (`<key_prefix>/**/<topic>`): what a central monitor subscribes to, whatever the
+    /// sites and dampers behind the routers.
+    pub fn watch(&self, topic: Topic) -> Result<TopicWatch, TransportError> {
+        let key = format!("{}/**/{}", self.cfg.key_prefix, topic.key());
+        let (queue, rx) = FifoChannel::new(QUEUE).into_handler();
+        let doorbell = Doorbell::new();
+        let bell = doorbell.clone();
+        let subscriber = self
+            .session
+            .declare_subscriber(key.clone())
+            .callback(move |sample| {
+                queue.call(sample);
+                bell.ring();
+            })
+            .wait()
+            .map_err(|e| TransportError::new(NAME, format!("declare subscriber {key}"), e))?;
+        Ok(TopicWatch {
+            topic,
+            prefix: format!("{}/", self.cfg.key_prefix),
+            suffix: format!("/{}", topic.key()),
+            _subscriber: subscriber,
+            queue: rx,
+            doorbell,
+        })
+    }
+}
+
+/// One topic of every damper under a key prefix ([`ZenohSession::watch`]).
+pub struct TopicWatch {
+    topic: Topic,
+    prefix: String,
+    suffix: String,
+    _subscriber: Subscriber<()>,
+    queue: FifoChannelHandler<Sample>,
+    doorbell: Doorbell,
+}
+
+impl TopicWatch {
+    /// Append what arrived, each with the damper's key between the prefix and the topic
+    /// (`siteA/d001` for `mrtwin/siteA/d001/twin/output`). A payload that does not
+    /// decode is an error naming its key (what came before it is kept).
+    pub fn poll(&mut self, out: &mut Vec<(String, Message)>) -> Result<(), TransportError> {
+        while let Some(sample) = self
+            .queue
+            .try_recv()
+            .map_err(|e| TransportError::new(NAME, format!("receive {}", self.suffix), e))?
+        {
+            let key = sample.key_expr().as_str();
+            let damper = key
+                .strip_prefix(&self.prefix)
+                .and_then(|k| k.strip_suffix(&self.suffix))
+                .unwrap_or(key)
+                .to_string();
+            let m = Message::from_cdr(self.topic, &sample.payload().to_bytes())
+                .map_err(|e| TransportError::new(NAME, format!("decode {key}"), e))?;
+            out.push((damper, m));
+        }
+        Ok(())
+    }
+
+    /// Rings when something arrived.
+    pub fn doorbell(&self) -> Doorbell {
+        self.doorbell.clone()
+    }
 }
 
 impl ZenohTransport {
