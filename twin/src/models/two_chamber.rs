@@ -449,20 +449,34 @@ impl TwoChamber {
                     m.integrate_chambers(&y, &a, &b, hk, &flow)
                 })
             };
-            let first = if self.refine_next {
-                uniform(self)
+            let y = if self.refine_next {
+                uniform(self).map(|y| (y, dpy > 0.0 && flowing(&y0) != flowing(&y)))
             } else {
-                self.integrate_chambers(&y0, from, to, h, &flow)
+                // One step over the whole sub-step first: where the flow keeps its state
+                // (all but the sub-steps at a stroke reversal) that is the answer.
+                self.chambers_step(&y0, from, to, h, &flow).and_then(|y1| {
+                    if !(dpy > 0.0 && flowing(&y0) != flowing(&y1)) {
+                        return Ok((y1, false));
+                    }
+                    // The flow opens or blocks within it: the sub-step is taken in
+                    // `REFINE` parts, each cut further around the switch. (Taking the
+                    // whole sub-step cut around the switch first, as before, only to
+                    // throw it away when it confirms the switch, was the slow 1 % of
+                    // the control loop's round trips: BENCHMARKS.md, "iceoryx2 control
+                    // service".) Where the parts end on the side the flow started on,
+                    // the whole sub-step cut around the switch decides, as before.
+                    let yu = uniform(self)?;
+                    if flowing(&y0) != flowing(&yu) {
+                        return Ok((yu, true));
+                    }
+                    let yb = self.refine_switch(&y0, y1, from, to, h, &flow)?;
+                    Ok(if flowing(&y0) != flowing(&yb) {
+                        (yu, true)
+                    } else {
+                        (yb, false)
+                    })
+                })
             };
-            let y = first.and_then(|y| {
-                let switched = dpy > 0.0 && flowing(&y0) != flowing(&y);
-                let y = if switched && !self.refine_next {
-                    uniform(self)?
-                } else {
-                    y
-                };
-                Ok((y, switched))
-            });
             // A sub-step the solver cannot take even at 2⁻¹⁰ of it holds the pressures
             // and is reported, not hidden.
             match y {
@@ -492,7 +506,20 @@ impl TwoChamber {
         h: f64,
         flow: &SlitFlow,
     ) -> Result<Vector<2>, NotConverged> {
-        const MIN_SUBSTEP_S: f64 = 2.0e-5;
+        let y1 = self.chambers_step(y0, from, to, h, flow)?;
+        self.refine_switch(y0, y1, from, to, h, flow)
+    }
+
+    /// The chamber pressures after one TR-BDF2 step over the sub-step (halved only where
+    /// Newton fails), without looking at the flow's switches.
+    fn chambers_step(
+        &self,
+        y0: &Vector<2>,
+        from: &DamperInput,
+        to: &DamperInput,
+        h: f64,
+        flow: &SlitFlow,
+    ) -> Result<Vector<2>, NotConverged> {
         let sys = Chambers {
             m: self,
             flow: *flow,
@@ -503,7 +530,22 @@ impl TwoChamber {
             atol: Vector::<2>::new(1.0, 1.0),
             rtol: 1e-9,
         };
-        let y1 = trbdf2_adaptive(&sys, y0, 0.0, 1.0, h, &tol)?;
+        trbdf2_adaptive(&sys, y0, 0.0, 1.0, h, &tol)
+    }
+
+    /// `y1`, the one-step result of [`TwoChamber::chambers_step`], unless the flow opened
+    /// or blocked within the step: then the step halved recursively around the switch,
+    /// down to `MIN_SUBSTEP_S`.
+    fn refine_switch(
+        &self,
+        y0: &Vector<2>,
+        y1: Vector<2>,
+        from: &DamperInput,
+        to: &DamperInput,
+        h: f64,
+        flow: &SlitFlow,
+    ) -> Result<Vector<2>, NotConverged> {
+        const MIN_SUBSTEP_S: f64 = 2.0e-5;
         let dpy = flow.yield_pressure();
         let flowing = |y: &Vector<2>| (y[0] - y[1]).abs() > dpy;
         if dpy > 0.0 && flowing(y0) != flowing(&y1) && h > 2.0 * MIN_SUBSTEP_S {
