@@ -61,6 +61,9 @@ pub struct FleetArgs {
     pub ros_args: Vec<String>,
 }
 
+/// How long the twins keep serving after the stands stopped: the samples in flight.
+const DRAIN: Duration = Duration::from_millis(300);
+
 /// The damper names: `d001`, `d002`, …
 fn damper_name(i: usize) -> String {
     format!("d{:03}", i + 1)
@@ -235,11 +238,19 @@ pub fn run(args: &FleetArgs) -> Result<()> {
     let t0 = Instant::now();
     let duration = Duration::from_secs_f64(args.duration);
     let stand_stop = stop.clone();
-    let stands_thread = std::thread::spawn(move || players.run(Some(&stand_stop), duration));
-    // The twins run until the stands are done and their last samples are through.
+    // The twins run until the stands are done (their duration, or Ctrl-C) and their last
+    // samples are through.
+    let twins_stop = Arc::new(AtomicBool::new(false));
+    let stands_done = twins_stop.clone();
+    let stands_thread = std::thread::spawn(move || {
+        let r = players.run(Some(&stand_stop), duration);
+        std::thread::sleep(DRAIN);
+        stands_done.store(true, Ordering::Relaxed);
+        r
+    });
     let counts = fleet.run(StopWhen {
-        flag: Some(&stop),
-        deadline: Some(t0 + duration + Duration::from_millis(500)),
+        flag: Some(&twins_stop),
+        deadline: Some(t0 + duration + DRAIN + Duration::from_secs(5)),
     });
     let (sent, stand_summary) = stands_thread
         .join()
