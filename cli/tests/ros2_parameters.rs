@@ -93,26 +93,42 @@ fn rclpy_reads_and_sets_the_parameters_of_the_twin_inside_the_demo() {
     assert_eq!(v["shifted_then_all"], true, "{v}");
 }
 
-#[test]
-fn rclpy_reads_and_sets_the_parameters_of_mrtwin_node() {
-    let _serial = serial();
-    let dir = TempDir::new("ros2_parameters_node");
-    let params = dir.path("twin.yaml");
+/// `mrtwin node|stand` for 60 s under namespace `ns`, its `ros__parameters` (the lines
+/// of `body`, indented by four) in a file of `dir`.
+fn spawn_node(dir: &TempDir, command: &str, body: &str, ns: &str) -> ChildGuard {
+    let params = dir.path("params.yaml");
+    let section = if command == "stand" {
+        "mrtwin_stand"
+    } else {
+        "mrtwin_twin"
+    };
     std::fs::write(
         &params,
-        "mrtwin_twin:\n  ros__parameters:\n    damper: paramsdamper\n    transports: [ros2]\n    input: ros2\n    control_service: false\n    ros2:\n      domain_id: 97\n",
+        format!("{section}:\n  ros__parameters:\n    {body}\n"),
     )
     .expect("write parameter file");
-    let node = ChildGuard::spawn(mrtwin().args([
-        "node",
+    ChildGuard::spawn(mrtwin().args([
+        command,
         "--duration",
         "60",
         "--ros-args",
         "--params-file",
         params.to_str().unwrap(),
         "-r",
-        "__ns:=/rig",
-    ]));
+        &format!("__ns:={ns}"),
+    ]))
+}
+
+#[test]
+fn rclpy_reads_and_sets_the_parameters_of_mrtwin_node() {
+    let _serial = serial();
+    let dir = TempDir::new("ros2_parameters_node");
+    let node = spawn_node(
+        &dir,
+        "node",
+        "damper: paramsdamper\n    transports: [ros2]\n    input: ros2\n    control_service: false\n    ros2:\n      domain_id: 97",
+        "/rig",
+    );
     let v = client("97", "/rig/mrtwin_twin", false);
     drop(node);
     check_common(&v);
@@ -125,22 +141,12 @@ const STAND_CLIENT: &str = include_str!("ros2_stand_parameters_client.py");
 fn rclpy_reads_and_sets_the_parameters_of_mrtwin_stand_and_the_samples_follow() {
     let _serial = serial();
     let dir = TempDir::new("ros2_parameters_stand");
-    let params = dir.path("stand.yaml");
-    std::fs::write(
-        &params,
-        "mrtwin_stand:\n  ros__parameters:\n    damper: standparams\n    transports: [ros2]\n    ros2:\n      domain_id: 98\n",
-    )
-    .expect("write parameter file");
-    let stand = ChildGuard::spawn(mrtwin().args([
+    let stand = spawn_node(
+        &dir,
         "stand",
-        "--duration",
-        "60",
-        "--ros-args",
-        "--params-file",
-        params.to_str().unwrap(),
-        "-r",
-        "__ns:=/standrig",
-    ]));
+        "damper: standparams\n    transports: [ros2]\n    ros2:\n      domain_id: 98",
+        "/standrig",
+    );
     let out = run_python_with_msgs(
         STAND_CLIENT,
         &["/standrig/mrtwin_stand", "/standrig"],

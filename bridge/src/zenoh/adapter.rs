@@ -83,6 +83,27 @@ pub struct ZenohTransport {
 /// Samples queued per subscription before zenoh's receiving thread waits for the reader.
 const QUEUE: usize = 65_536;
 
+/// A subscriber to `key` whose callback queues each sample in a FIFO channel, as zenoh's
+/// default handler does, and rings `doorbell`. Queueing blocks zenoh's receiving thread
+/// while the queue is full.
+fn queued_subscriber(
+    session: &Session,
+    key: String,
+    doorbell: &Doorbell,
+) -> Result<(Subscriber<()>, FifoChannelHandler<Sample>), TransportError> {
+    let (queue, rx) = FifoChannel::new(QUEUE).into_handler();
+    let bell = doorbell.clone();
+    let s = session
+        .declare_subscriber(key.clone())
+        .callback(move |sample| {
+            queue.call(sample);
+            bell.ring();
+        })
+        .wait()
+        .map_err(|e| TransportError::new(NAME, format!("declare subscriber {key}"), e))?;
+    Ok((s, rx))
+}
+
 /// One zenoh session shared by many dampers' adapters (a fleet in one process: one
 /// session, one set of links, N dampers' key expressions). Dropping the last adapter and
 /// this handle closes it.
@@ -128,18 +149,8 @@ impl ZenohSession {
     /// sites and dampers behind the routers.
     pub fn watch(&self, topic: Topic) -> Result<TopicWatch, TransportError> {
         let key = format!("{}/**/{}", self.cfg.key_prefix, topic.key());
-        let (queue, rx) = FifoChannel::new(QUEUE).into_handler();
         let doorbell = Doorbell::new();
-        let bell = doorbell.clone();
-        let subscriber = self
-            .session
-            .declare_subscriber(key.clone())
-            .callback(move |sample| {
-                queue.call(sample);
-                bell.ring();
-            })
-            .wait()
-            .map_err(|e| TransportError::new(NAME, format!("declare subscriber {key}"), e))?;
+        let (subscriber, rx) = queued_subscriber(&self.session, key, &doorbell)?;
         Ok(TopicWatch {
             topic,
             prefix: format!("{}/", self.cfg.key_prefix),
@@ -227,18 +238,7 @@ impl ZenohTransport {
         let mut subscribers = Vec::new();
         let doorbell = Doorbell::new();
         for &t in subscribe {
-            let key = cfg.key(damper, t);
-            // Queueing blocks zenoh's receiving thread while the queue is full.
-            let (queue, rx) = FifoChannel::new(QUEUE).into_handler();
-            let bell = doorbell.clone();
-            let s = session
-                .declare_subscriber(key.clone())
-                .callback(move |sample| {
-                    queue.call(sample);
-                    bell.ring();
-                })
-                .wait()
-                .map_err(|e| TransportError::new(NAME, format!("declare subscriber {key}"), e))?;
+            let (s, rx) = queued_subscriber(&session, cfg.key(damper, t), &doorbell)?;
             subscribers.push((t, s, rx));
         }
         Ok(Self {
