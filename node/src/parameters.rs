@@ -1,6 +1,7 @@
 //! A node's settings as ROS 2 parameters (`ros2 param list|get|set|describe`, rclpy's
 //! `AsyncParameterClient`), served by the ROS 2 adapter ([`bridge::params::ParamService`]):
-//! the twin's ([`TwinParameters`]) and the stand's ([`StandParameters`]), by one path.
+//! the twin's ([`TwinParameters`]) and the stand's ([`crate::stand::StandParameters`]), by
+//! one path.
 //!
 //! - **Names** are the parameter file's keys, dotted: `health.residual_warn_sigma`,
 //!   `estimator.settings.forgetting_factor`, `two_chamber.bulk_modulus_pa`,
@@ -29,7 +30,6 @@ use serde_norway::{Number, Value};
 
 use crate::config::TwinNodeParams;
 use crate::pipeline::TwinPipeline;
-use crate::stand::StandParams;
 
 /// A node's parameter set as served: its restart-only keys, and the check a whole set
 /// passes before it is taken.
@@ -60,30 +60,8 @@ impl ServedSettings for TwinNodeParams {
     }
 }
 
-impl ServedSettings for StandParams {
-    /// The pacing (`rate_hz`) and the random stream (`seed`) are fixed for a run.
-    const RESTART_ONLY: &'static [&'static str] = &[
-        "damper",
-        "transports",
-        "rate_hz",
-        "seed",
-        "zenoh",
-        "ros2",
-        "iceoryx2",
-    ];
-
-    /// Validated, and its model with its effects built.
-    fn check(&self) -> Result<(), String> {
-        crate::stand::StandPlayer::new(self)
-            .map(|_| ())
-            .map_err(|e| e.to_string())
-    }
-}
-
-/// The twin node's served parameters.
+/// The twin node's served parameters (the stand's: [`crate::stand::StandParameters`]).
 pub type TwinParameters = Served<TwinNodeParams>;
-/// The stand node's served parameters.
-pub type StandParameters = Served<StandParams>;
 
 /// A node's parameters, shared by the ROS 2 adapter (which checks and sets) and the
 /// node's loop (which takes what was set).
@@ -258,6 +236,7 @@ pub fn with_value<P: ServedSettings>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::stand::{StandParameters, StandParams};
 
     fn find<'a>(d: &'a [(String, ParamValue)], name: &str) -> Option<&'a ParamValue> {
         d.iter().find(|(n, _)| n == name).map(|(_, v)| v)

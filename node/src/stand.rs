@@ -5,7 +5,7 @@
 //! NaN samples, and a period of silence.
 //!
 //! With the ROS 2 transport the stand serves its settings as ROS 2 parameters
-//! ([`crate::parameters::StandParameters`]); a set takes effect at the next sample
+//! ([`StandParameters`], through [`crate::parameters`]); a set takes effect at the next sample
 //! ([`StandPlayer::retune`]).
 
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -25,7 +25,7 @@ use twin::EffectsChoice;
 
 use crate::conditioning::SensorSample;
 use crate::config::InvalidParam;
-use crate::parameters::StandParameters;
+use crate::parameters::{Served, ServedSettings};
 use crate::runner::NodeError;
 use crate::transports::{open_serving, TransportKind, TransportSettings};
 
@@ -170,6 +170,29 @@ impl StandParams {
         Ok(())
     }
 }
+
+impl ServedSettings for StandParams {
+    /// The pacing (`rate_hz`) and the random stream (`seed`) are fixed for a run.
+    const RESTART_ONLY: &'static [&'static str] = &[
+        "damper",
+        "transports",
+        "rate_hz",
+        "seed",
+        "zenoh",
+        "ros2",
+        "iceoryx2",
+    ];
+
+    /// Validated, and its model with its effects built.
+    fn check(&self) -> Result<(), String> {
+        StandPlayer::new(self)
+            .map(|_| ())
+            .map_err(|e| e.to_string())
+    }
+}
+
+/// The stand node's served parameters ([`crate::parameters`]).
+pub type StandParameters = Served<StandParams>;
 
 /// What the stand did.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
