@@ -15,7 +15,7 @@ use crate::conditioning::SensorSample;
 use crate::config::TwinNodeParams;
 use crate::core::TwinCore;
 use crate::runner::{NodeError, StopWhen};
-use crate::stand::{pace, StandParams, StandPlayer, StandSummary};
+use crate::stand::{publish_sample, run_paced, StandParams, StandPlayer, StandSummary};
 
 /// Longest sleep of the twins' loop between turns (how soon a stop is seen).
 const MAX_SLEEP: Duration = Duration::from_millis(20);
@@ -204,37 +204,32 @@ impl FleetStands {
         for (player, _) in &mut self.players {
             player.set_epoch(epoch);
         }
-        let start = Instant::now();
-        let dt = 1.0 / self.rate_hz;
         let mut summary = StandSummary::default();
         let mut counts = vec![StandCounts::default(); self.players.len()];
         let mut batch = Vec::new();
-        for k in 0u64.. {
-            let due = start + Duration::from_secs_f64(k as f64 * dt);
-            if stop.is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed))
-                || due >= start + duration
-            {
-                break;
-            }
-            pace(due, &mut summary);
-            for ((player, transport), c) in self.players.iter_mut().zip(&mut counts) {
-                player.next(&mut batch);
-                summary.generated += 1;
-                for s in &batch {
-                    match transport.publish(&Message::Sample(s.to_msg(player.damper()))) {
-                        Ok(()) => {
+        let players = &mut self.players;
+        run_paced(
+            self.rate_hz,
+            stop,
+            Some(duration),
+            &mut summary,
+            |_, summary| -> Result<(), std::convert::Infallible> {
+                for ((player, transport), c) in players.iter_mut().zip(&mut counts) {
+                    player.next(&mut batch);
+                    summary.generated += 1;
+                    for s in &batch {
+                        let msg = Message::Sample(s.to_msg(player.damper()));
+                        if publish_sample(transport.as_mut(), player.damper(), &msg, summary) {
                             c.sent += 1;
-                            summary.published += 1;
-                        }
-                        Err(e) => {
-                            tracing::warn!(damper = player.damper(), error = %e, "fleet: publish failed");
+                        } else {
                             c.errors += 1;
-                            summary.errors += 1;
                         }
                     }
                 }
-            }
-        }
+                Ok(())
+            },
+        )
+        .unwrap_or_else(|never| match never {});
         (counts, summary)
     }
 }

@@ -137,6 +137,20 @@ impl StandParams {
         p
     }
 
+    /// The damper model that plays the stand, with its effects.
+    fn model(&self) -> Result<Box<dyn twin::DamperModel>, NodeError> {
+        Ok(build(
+            self.model,
+            &self.model_params(),
+            self.model.effects(self.effects),
+        )?)
+    }
+
+    /// The force sensor's noise (validated: σ ≥ 0).
+    fn noise(&self) -> Normal<f64> {
+        Normal::new(0.0, self.noise_n.max(1e-300)).expect("σ > 0")
+    }
+
     /// The model parameters of the four sections.
     pub fn model_params(&self) -> ModelParams {
         ModelParams {
@@ -254,42 +268,75 @@ impl StandNode {
     ) -> Result<StandSummary, NodeError> {
         let mut player = StandPlayer::new(&self.params)?;
         player.set_epoch(wall_clock_s());
-        let start = Instant::now();
-        let dt = 1.0 / self.params.rate_hz;
         let mut summary = StandSummary::default();
         let mut batch = Vec::new();
-        for k in 0u64.. {
-            let due = start + Duration::from_secs_f64(k as f64 * dt);
-            if stop.is_some_and(|f| f.load(Ordering::Relaxed))
-                || duration.is_some_and(|d| due >= start + d)
-            {
-                break;
-            }
-            pace(due, &mut summary);
-            if let Some(params) = self.served.take_pending() {
-                player.retune(&params)?;
-                tracing::info!("took a ROS 2 parameter set at sample {k}");
-            }
-            player.next(&mut batch);
-            summary.generated += 1;
-            self.publish(&batch, &mut summary);
-        }
-        Ok(summary)
-    }
-
-    /// Publish `batch` on every transport; a failure is logged and counted.
-    fn publish(&mut self, batch: &[SensorSample], summary: &mut StandSummary) {
-        for s in batch {
-            let msg = Message::Sample(s.to_msg(&self.params.damper));
-            for t in &mut self.transports {
-                match t.publish(&msg) {
-                    Ok(()) => summary.published += 1,
-                    Err(e) => {
-                        tracing::warn!(transport = t.name(), error = %e, "publish failed");
-                        summary.errors += 1;
+        run_paced(
+            self.params.rate_hz,
+            stop,
+            duration,
+            &mut summary,
+            |k, summary| -> Result<(), NodeError> {
+                if let Some(params) = self.served.take_pending() {
+                    player.retune(&params)?;
+                    tracing::info!("took a ROS 2 parameter set at sample {k}");
+                }
+                player.next(&mut batch);
+                summary.generated += 1;
+                for s in &batch {
+                    let msg = Message::Sample(s.to_msg(&self.params.damper));
+                    for t in &mut self.transports {
+                        publish_sample(t.as_mut(), &self.params.damper, &msg, summary);
                     }
                 }
-            }
+                Ok(())
+            },
+        )?;
+        Ok(summary)
+    }
+}
+
+/// Call `tick(k, summary)` at `start + k / rate_hz` in real time ([`pace`]) for k = 0, 1, …
+/// until `stop` is set or tick `k` would fall at or after `duration`; the lateness behind
+/// the schedule goes into `summary`. The pacing of the stand node and of the fleet's stands.
+pub fn run_paced<E>(
+    rate_hz: f64,
+    stop: Option<&AtomicBool>,
+    duration: Option<Duration>,
+    summary: &mut StandSummary,
+    mut tick: impl FnMut(u64, &mut StandSummary) -> Result<(), E>,
+) -> Result<(), E> {
+    let start = Instant::now();
+    let dt = 1.0 / rate_hz;
+    for k in 0u64.. {
+        let due = start + Duration::from_secs_f64(k as f64 * dt);
+        if stop.is_some_and(|f| f.load(Ordering::Relaxed))
+            || duration.is_some_and(|d| due >= start + d)
+        {
+            break;
+        }
+        pace(due, summary);
+        tick(k, summary)?;
+    }
+    Ok(())
+}
+
+/// Publish one of `damper`'s sample messages on `transport`, counted in `summary` (a
+/// failure is logged and counted as an error); whether it went out.
+pub fn publish_sample(
+    transport: &mut dyn Transport,
+    damper: &str,
+    msg: &Message,
+    summary: &mut StandSummary,
+) -> bool {
+    match transport.publish(msg) {
+        Ok(()) => {
+            summary.published += 1;
+            true
+        }
+        Err(e) => {
+            tracing::warn!(damper, transport = transport.name(), error = %e, "publish failed");
+            summary.errors += 1;
+            false
         }
     }
 }
@@ -321,10 +368,10 @@ impl StandPlayer {
     pub fn new(params: &StandParams) -> Result<Self, NodeError> {
         params.validate()?;
         let p = params.clone();
-        let model = build(p.model, &p.model_params(), p.model.effects(p.effects))?;
+        let model = p.model()?;
         let programme = p.programme();
         let cycle = programme.sample_count().max(1);
-        let noise = Normal::new(0.0, p.noise_n.max(1e-300)).expect("σ > 0");
+        let noise = p.noise();
         let rng = rand::rngs::StdRng::seed_from_u64(p.seed);
         Ok(Self {
             params: p,
@@ -362,11 +409,7 @@ impl StandPlayer {
         if (params.model, params.effects, params.model_params())
             != (p.model, p.effects, p.model_params())
         {
-            self.model = build(
-                params.model,
-                &params.model_params(),
-                params.model.effects(params.effects),
-            )?;
+            self.model = params.model()?;
             self.restart = true;
         }
         let programme = params.programme();
@@ -376,7 +419,7 @@ impl StandPlayer {
             self.programme_start = self.k;
             self.restart = true;
         }
-        self.noise = Normal::new(0.0, params.noise_n.max(1e-300)).expect("σ > 0");
+        self.noise = params.noise();
         self.params = params.clone();
         Ok(())
     }
@@ -449,7 +492,7 @@ pub fn wall_clock_s() -> f64 {
 
 /// Sleep, then spin for the last 200 µs, until `due`; a sample already late is counted
 /// in the summary's lateness.
-pub fn pace(due: Instant, summary: &mut StandSummary) {
+fn pace(due: Instant, summary: &mut StandSummary) {
     let now = Instant::now();
     if due > now {
         let wait = due - now;
