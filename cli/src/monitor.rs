@@ -12,6 +12,7 @@ use bridge::transport::{Message, Topic};
 use bridge::zenoh::{ZenohConfig, ZenohMode, ZenohSession};
 use clap::Args;
 use node::monitor::{level_name, Change, FleetMonitor};
+use node::runner::StopWhen;
 use serde_json::json;
 
 /// Arguments of `mrtwin monitor`.
@@ -52,11 +53,7 @@ pub fn run(args: &MonitorArgs) -> Result<()> {
             args.stale_after
         );
     }
-    let deadline = match args.duration {
-        Some(d) if d.is_finite() && d > 0.0 => Some(Instant::now() + Duration::from_secs_f64(d)),
-        Some(d) => bail!("--duration must be a positive number of seconds, got {d}"),
-        None => None,
-    };
+    let duration = crate::nodes::duration(args.duration)?;
     let stop = crate::stop::stop_flag()?;
     let session = ZenohSession::open(&ZenohConfig {
         mode: ZenohMode::Client,
@@ -77,11 +74,15 @@ pub fn run(args: &MonitorArgs) -> Result<()> {
         args.stale_after
     );
     let start = Instant::now();
+    let until = StopWhen {
+        flag: Some(&stop),
+        deadline: duration.map(|d| start + d),
+    };
     let mut monitor = FleetMonitor::new(args.stale_after);
     let mut inbox = Vec::new();
     loop {
         let now = Instant::now();
-        if stop.load(std::sync::atomic::Ordering::Relaxed) || deadline.is_some_and(|d| now >= d) {
+        if until.reached(now) {
             break;
         }
         let t = now.duration_since(start).as_secs_f64();

@@ -6,7 +6,6 @@
 
 use std::path::PathBuf;
 use std::process::{Child, Command};
-use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
@@ -61,7 +60,7 @@ fn params_file_watch(ros: launch_config::RosArgs) -> node::runner::ParamsSource 
     })
 }
 
-fn duration(d: Option<f64>) -> Result<Option<Duration>> {
+pub(crate) fn duration(d: Option<f64>) -> Result<Option<Duration>> {
     match d {
         None => Ok(None),
         Some(s) if s.is_finite() && s > 0.0 => Ok(Some(Duration::from_secs_f64(s))),
@@ -170,10 +169,13 @@ pub fn run_launch(args: &LaunchArgs) -> Result<()> {
         tracing::info!(node = %label, pid = child.id(), "started");
         children.push((label, child));
     }
-    let deadline = duration(args.duration)?.map(|d| Instant::now() + d);
+    let until = StopWhen {
+        flag: Some(&stop),
+        deadline: duration(args.duration)?.map(|d| Instant::now() + d),
+    };
     let mut failed = None;
     'wait: loop {
-        if stop.load(Ordering::Relaxed) || deadline.is_some_and(|d| Instant::now() >= d) {
+        if until.reached(Instant::now()) {
             break;
         }
         for (label, c) in &mut children {

@@ -89,7 +89,7 @@ pub struct StopWhen<'a> {
 
 impl StopWhen<'_> {
     /// Whether the flag is set or the deadline has passed at `now`.
-    pub(crate) fn reached(&self, now: Instant) -> bool {
+    pub fn reached(&self, now: Instant) -> bool {
         self.flag.is_some_and(|f| f.load(Ordering::Relaxed))
             || self.deadline.is_some_and(|d| now >= d)
     }
