@@ -24,6 +24,11 @@ const HOSTS: [&str; 3] = ["central", "siteA", "siteB"];
 /// The namespace suffix of each host.
 const NS_SUFFIX: [&str; 3] = ["c", "a", "b"];
 
+/// The network namespace of `host` in the net tagged `tag`.
+fn ns_name(tag: &str, host: usize) -> String {
+    format!("{tag}{}", NS_SUFFIX[host])
+}
+
 /// Where the hosts live.
 enum Net {
     /// One network namespace per host; rig `i` reaches the centre at `10.211.i.1` over
@@ -44,7 +49,7 @@ impl Net {
     /// Three namespaces joined by two veth pairs, or loopback addresses if that fails.
     fn create() -> Self {
         let tag = format!("m{}", std::process::id() % 1_000_000);
-        let ns = |h: usize| format!("{tag}{}", NS_SUFFIX[h]);
+        let ns = |h: usize| ns_name(&tag, h);
         let forced = std::env::var_os("MRTWIN_ROUTERS_LOOPBACK").is_some();
         let mut ok = !forced
             && (0..3).all(|h| {
@@ -88,7 +93,7 @@ impl Net {
 
     fn namespace(&self, host: usize) -> Option<String> {
         match self {
-            Net::Namespaces { tag } => Some(format!("{tag}{}", NS_SUFFIX[host])),
+            Net::Namespaces { tag } => Some(ns_name(tag, host)),
             Net::Loopback { .. } => None,
         }
     }
