@@ -1660,7 +1660,7 @@ fn prune(
 /// softness) of a fit.
 fn base_parameters(f: &Fit) -> BTreeMap<String, f64> {
     let l = &f.layout;
-    BTreeMap::from([
+    let mut out = BTreeMap::from([
         ("force_offset_N".to_string(), f.theta[l.offset_index()]),
         (
             "leak_velocity_mm_s".to_string(),
@@ -1671,7 +1671,18 @@ fn base_parameters(f: &Fit) -> BTreeMap<String, f64> {
             f.theta[l.leak_rel_index()],
         ),
         ("yield_softness".to_string(), f.theta[l.softness_index()]),
-    ])
+    ]);
+    // Each current knot's yield force, viscous coefficient and speed curvature, in the
+    // knots' order (`split.current_knots_a`).
+    for k in 0..l.nk {
+        out.insert(format!("knot{k}_yield_force_N"), f.theta[k]);
+        out.insert(format!("knot{k}_viscous_N_s_m"), f.theta[l.nk + k]);
+        out.insert(
+            format!("knot{k}_curvature_N"),
+            f.theta[l.curvature_index() + k],
+        );
+    }
+    out
 }
 
 #[cfg(test)]

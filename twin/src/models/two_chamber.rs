@@ -39,6 +39,18 @@ use crate::integrate::{trbdf2_adaptive, Matrix, NotConverged, StiffSystem, Toler
 use crate::model::{substep_count, substeps, DamperInput, DamperModel, DamperOutput};
 use crate::models::quadratic_in_current;
 
+/// The rod-force error, as a fraction of the yield force A1 Δp_y, below which the sub-step
+/// after an opening flow is taken by step doubling instead of in parts
+/// ([`TwoChamber::relaxed_after_switch`]). At 10⁻³ (about 1 N on the paper's damper at
+/// 1 A) it is below what one ordinary 1 ms sub-step already errs by near a reversal (up
+/// to 2.5 N against a 2 µs reference at 2 Hz, 10 mm, 1 A).
+const SETTLED_FORCE_TOL: f64 = 1e-3;
+
+/// Parts of a sub-step around a switch between blocked and flowing
+/// ([`TwoChamber::switch_in_parts`]), and of the sub-step after an opening where step
+/// doubling does not settle ([`TwoChamber::relaxed_after_switch`]).
+const REFINE: usize = 8;
+
 /// Which constitutive law the fluid follows in the gap.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
@@ -438,9 +450,9 @@ impl TwoChamber {
     fn solve_pressures(&mut self, from: &DamperInput, to: &DamperInput, h: f64, flow: SlitFlow) {
         if self.effects.has(Effect::FluidCompressibility) {
             // Around a switch between blocked and flowing, the chamber pressures relax on
-            // the fast time constant V/(K dQ/dΔp): the sub-step holding the switch and the
-            // one after it are cut into `REFINE` parts.
-            const REFINE: usize = 8;
+            // the fast time constant V/(K dQ/dΔp): the sub-step holding the switch is cut
+            // into `REFINE` parts where the flow is open, and the one after an opening is
+            // taken by step doubling (docs/physics.md, "Integration").
             let y0 = Vector::<2>::new(self.p1, self.p2);
             let dpy = flow.yield_pressure();
             let flowing = |y: &Vector<2>| (y[0] - y[1]).abs() > dpy;
@@ -450,7 +462,13 @@ impl TwoChamber {
                 })
             };
             let y = if self.refine_next {
-                uniform(self).map(|y| (y, dpy > 0.0 && flowing(&y0) != flowing(&y)))
+                // The sub-step after a switch: where one step and two half steps agree
+                // (step doubling) and the flow keeps its state, the halves are the answer;
+                // otherwise `REFINE` parts, as before.
+                match self.relaxed_after_switch(&y0, from, to, h, &flow) {
+                    Some(y) => Ok((y, false)),
+                    None => uniform(self).map(|y| (y, dpy > 0.0 && flowing(&y0) != flowing(&y))),
+                }
             } else {
                 // One step over the whole sub-step first: where the flow keeps its state
                 // (all but the sub-steps at a stroke reversal) that is the answer.
@@ -465,9 +483,11 @@ impl TwoChamber {
                     // the control loop's round trips: BENCHMARKS.md, "iceoryx2 control
                     // service".) Where the parts end on the side the flow started on,
                     // the whole sub-step cut around the switch decides, as before.
-                    let yu = uniform(self)?;
+                    let yu = self.switch_in_parts(&y0, &y1, from, to, h, &flow)?;
                     if flowing(&y0) != flowing(&yu) {
-                        return Ok((yu, true));
+                        // Only an opening flow leaves pressures relaxing into the next
+                        // sub-step; once blocked (Q = 0) they change smoothly.
+                        return Ok((yu, flowing(&yu)));
                     }
                     let yb = self.refine_switch(&y0, y1, from, to, h, &flow)?;
                     Ok(if flowing(&y0) != flowing(&yb) {
@@ -492,6 +512,86 @@ impl TwoChamber {
             let q = self.params.annulus_area() * to.velocity_m_s;
             self.p1 = self.p2 + flow.pressure_drop(q);
         }
+    }
+
+    /// The chamber pressures over a sub-step in which the flow opens or blocks (`y1`, the
+    /// one-step probe, on the other side of the yield pressure from `y0`), in `REFINE`
+    /// parts, each cut further around the switch, except where the flow is blocked: there
+    /// Q = 0 and the pressures follow the rod smoothly, so the blocked stretch before an
+    /// opening (up to the part the probe puts the switch in, by linear interpolation of
+    /// |Δp| − Δp_y) and the blocked rest after a blocking are each one step.
+    fn switch_in_parts(
+        &self,
+        y0: &Vector<2>,
+        y1: &Vector<2>,
+        from: &DamperInput,
+        to: &DamperInput,
+        h: f64,
+        flow: &SlitFlow,
+    ) -> Result<Vector<2>, NotConverged> {
+        let dpy = flow.yield_pressure();
+        let flowing = |y: &Vector<2>| (y[0] - y[1]).abs() > dpy;
+        let g = |y: &Vector<2>| (y[0] - y[1]).abs() - dpy;
+        let at = |k: usize| from.lerp(to, k as f64 / REFINE as f64);
+        let part = h / REFINE as f64;
+        let opening = !flowing(y0);
+        let (mut y, mut first) = (*y0, 0);
+        if opening {
+            let theta = g(y0) / (g(y0) - g(y1));
+            let k = ((theta * REFINE as f64).floor() as usize).min(REFINE - 1);
+            if k > 0 {
+                let yk = self.chambers_step(y0, from, &at(k), k as f64 * part, flow)?;
+                if !flowing(&yk) {
+                    (y, first) = (yk, k);
+                }
+            }
+        }
+        for k in first..REFINE {
+            let was_flowing = flowing(&y);
+            y = self.integrate_chambers(&y, &at(k), &at(k + 1), part, flow)?;
+            if !opening && was_flowing && !flowing(&y) && k + 1 < REFINE {
+                let rest = (REFINE - k - 1) as f64 * part;
+                let yr = self.chambers_step(&y, &at(k + 1), to, rest, flow)?;
+                if !flowing(&yr) {
+                    return Ok(yr);
+                }
+            }
+        }
+        Ok(y)
+    }
+
+    /// The chamber pressures over the sub-step after a switch by step doubling: one
+    /// TR-BDF2 step over it and two over its halves. The halves are returned when the
+    /// flow keeps its state in all three and their Richardson estimate of the halves' error
+    /// in the rod force, |A1 e1 − Ap e2| with e = (y_halves − y_whole)/3 (TR-BDF2 is
+    /// second order), is below [`SETTLED_FORCE_TOL`] of the yield force; `None` otherwise (or where Newton
+    /// fails), and the caller takes the sub-step in parts.
+    ///
+    /// Where it settles this takes 3 TR-BDF2 steps instead of 8: the sub-steps after a
+    /// reversal were the slow 1 % of the control loop (BENCHMARKS.md, "iceoryx2 control
+    /// service").
+    fn relaxed_after_switch(
+        &self,
+        y0: &Vector<2>,
+        from: &DamperInput,
+        to: &DamperInput,
+        h: f64,
+        flow: &SlitFlow,
+    ) -> Option<Vector<2>> {
+        let dpy = flow.yield_pressure();
+        let flowing = |y: &Vector<2>| (y[0] - y[1]).abs() > dpy;
+        let mid = from.lerp(to, 0.5);
+        let first = self.chambers_step(y0, from, &mid, 0.5 * h, flow).ok()?;
+        let halves = self.chambers_step(&first, &mid, to, 0.5 * h, flow).ok()?;
+        let whole = self.chambers_step(y0, from, to, h, flow).ok()?;
+        let state = flowing(y0);
+        if dpy > 0.0 && [whole, first, halves].iter().any(|y| flowing(y) != state) {
+            return None;
+        }
+        let e = (halves - whole) / 3.0;
+        let p = &self.params;
+        let force_error = (p.annulus_area() * e[0] - p.piston_area() * e[1]).abs();
+        (force_error <= SETTLED_FORCE_TOL * p.annulus_area() * dpy).then_some(halves)
     }
 
     /// One TR-BDF2 step of the chamber pressures. Where the flow opens or blocks within the
@@ -545,7 +645,7 @@ impl TwoChamber {
         h: f64,
         flow: &SlitFlow,
     ) -> Result<Vector<2>, NotConverged> {
-        const MIN_SUBSTEP_S: f64 = 2.0e-5;
+        const MIN_SUBSTEP_S: f64 = 3.2e-5;
         let dpy = flow.yield_pressure();
         let flowing = |y: &Vector<2>| (y[0] - y[1]).abs() > dpy;
         if dpy > 0.0 && flowing(y0) != flowing(&y1) && h > 2.0 * MIN_SUBSTEP_S {
