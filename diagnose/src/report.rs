@@ -43,8 +43,18 @@ pub struct Mismatch {
 pub struct Parameter {
     /// Value in `unit`.
     pub value: f64,
-    /// 95 % confidence interval (standard error inflated for autocorrelated residuals).
+    /// 95 % interval: ±1.96 of the fit's standard error (inflated for autocorrelated
+    /// residuals) and the model-error spread between the record's halves, combined in
+    /// quadrature ([`Parameter::halves_spread`]).
     pub ci95: [f64; 2],
+    /// The fit's own 95 % interval, ±1.96 standard errors, without the model-error spread.
+    pub ci95_fit: [f64; 2],
+    /// The spread of the value between the record's halves beyond what their standard
+    /// errors explain, s_m = √(max(0, ((a − b)² − se_a² − se_b²)/2)) with a the value fitted
+    /// on the fitting blocks and b on the held-out blocks (in `unit`; 0 where they agree
+    /// within their errors, and where the held-out refit failed). A model that is wrong
+    /// in a way that changes over the record gives the halves different values.
+    pub halves_spread: f64,
     /// Unit.
     pub unit: String,
 }
@@ -312,10 +322,17 @@ pub struct Report {
 fn fmt_params(p: &BTreeMap<String, Parameter>) -> String {
     p.iter()
         .map(|(k, v)| {
-            format!(
-                "{k} = {:.4} {} (95 % CI {:.4} … {:.4})",
+            let mut s = format!(
+                "{k} = {:.4} {} (95 % CI {:.4} … {:.4}",
                 v.value, v.unit, v.ci95[0], v.ci95[1]
-            )
+            );
+            if v.halves_spread > 0.0 {
+                s += &format!(
+                    " with the halves' spread; the fit alone {:.4} … {:.4}",
+                    v.ci95_fit[0], v.ci95_fit[1]
+                );
+            }
+            s + ")"
         })
         .collect::<Vec<_>>()
         .join("; ")

@@ -436,22 +436,59 @@ fn block_gains(d: &Prepared, before: &[f64], after: &[f64]) -> Vec<BlockGain> {
 }
 
 fn effect_parameters(fit: &Fit, e: Effect) -> BTreeMap<String, Parameter> {
+    effect_parameters_with_halves(fit, None, e)
+}
+
+/// Effect `e`'s parameters in `fit` (fitted on the fitting blocks), their intervals widened
+/// by the spread between `fit` and `halves`, the same model refitted on the held-out
+/// blocks ([`holdout_refit`]; issue 13: the fit's ±1.96 se held the proving ground's true
+/// values in half of the findings for some effects).
+fn effect_parameters_with_halves(
+    fit: &Fit,
+    halves: Option<&Fit>,
+    e: Effect,
+) -> BTreeMap<String, Parameter> {
     let mut out = BTreeMap::new();
     if let Some(k) = fit.layout.index(e) {
         for (q, info) in effect_params(e).iter().enumerate() {
             let v = fit.theta[k + q] * info.scale;
             let se = fit.se[k + q] * info.scale;
+            let spread = halves
+                .filter(|h| h.layout.index(e) == Some(k))
+                .map(|h| {
+                    let (b, se_b) = (h.theta[k + q] * info.scale, h.se[k + q] * info.scale);
+                    let excess = ((v - b).powi(2) - se * se - se_b * se_b) / 2.0;
+                    if excess.is_finite() {
+                        excess.max(0.0).sqrt()
+                    } else {
+                        0.0
+                    }
+                })
+                .unwrap_or(0.0);
+            let wide = se.hypot(spread);
             out.insert(
                 info.name.to_string(),
                 Parameter {
                     value: v,
-                    ci95: [v - 1.96 * se, v + 1.96 * se],
+                    ci95: [v - 1.96 * wide, v + 1.96 * wide],
+                    ci95_fit: [v - 1.96 * se, v + 1.96 * se],
+                    halves_spread: spread,
                     unit: info.unit.to_string(),
                 },
             );
         }
     }
     out
+}
+
+/// `fit`'s model refitted on the held-out blocks alone, from `fit`'s parameters: a second
+/// estimate of every parameter from the other half of the record. `None` where it does
+/// not converge to finite values.
+fn holdout_refit(d: &Prepared, fit: &Fit) -> Option<Fit> {
+    let mut other = d.clone();
+    std::mem::swap(&mut other.train, &mut other.holdout);
+    let f = crate::model::fit(&other, &fit.layout, &fit.theta);
+    (f.theta.iter().chain(&f.se).all(|x| x.is_finite()) && f.train_n > 0).then_some(f)
 }
 
 /// Fit `e` on top of `current` (several start values for the nonlinear ones).
@@ -1396,12 +1433,18 @@ pub fn diagnose_with_progress(
             current = refit;
         }
     }
+    let reported = |e: &Effect| !sel.undecided_effects.contains(e);
+    let halves = if sel.accepted.iter().any(|(e, _, _)| reported(e)) {
+        holdout_refit(&d, &current)
+    } else {
+        None
+    };
     let findings = sel
         .accepted
         .iter()
-        .filter(|(e, _, _)| !sel.undecided_effects.contains(e))
+        .filter(|(e, _, _)| reported(e))
         .map(|(e, ev, gains)| {
-            let parameters = effect_parameters(&current, *e);
+            let parameters = effect_parameters_with_halves(&current, halves.as_ref(), *e);
             Finding {
                 effect: e.id().into(),
                 explanation: explanation(*e, &parameters),
