@@ -290,24 +290,69 @@ pub struct TwoChamber {
     prev: Option<DamperInput>,
 }
 
-/// Chamber pressures over one sub-step, with the kinematics interpolated across it.
-struct Chambers<'a> {
-    m: &'a TwoChamber,
-    flow: SlitFlow,
+/// A stretch of a sub-step: its ends (the kinematics linear between them), its length
+/// \[s\] and the gap's flow law at the sub-step's current.
+#[derive(Clone, Copy)]
+struct Span {
     from: DamperInput,
     to: DamperInput,
+    h: f64,
+    flow: SlitFlow,
+}
+
+impl Span {
+    /// Another stretch of the same sub-step (same flow law).
+    fn with(&self, from: DamperInput, to: DamperInput, h: f64) -> Span {
+        Span {
+            from,
+            to,
+            h,
+            ..*self
+        }
+    }
+
+    /// The two halves of this stretch.
+    fn halves(&self) -> (Span, Span) {
+        let mid = self.from.lerp(&self.to, 0.5);
+        (
+            self.with(self.from, mid, 0.5 * self.h),
+            self.with(mid, self.to, 0.5 * self.h),
+        )
+    }
+
+    /// |Δp| − Δp_y at the chamber pressures `y`: positive where the gap flows.
+    fn excess(&self, y: &Vector<2>) -> f64 {
+        (y[0] - y[1]).abs() - self.flow.yield_pressure()
+    }
+
+    /// Whether the gap flows at the chamber pressures `y`.
+    fn flowing(&self, y: &Vector<2>) -> bool {
+        self.excess(y) > 0.0
+    }
+
+    /// Whether the flow opened or blocked between `y0` and `y1` (never without a yield
+    /// pressure).
+    fn switched(&self, y0: &Vector<2>, y1: &Vector<2>) -> bool {
+        self.flow.yield_pressure() > 0.0 && self.flowing(y0) != self.flowing(y1)
+    }
+}
+
+/// Chamber pressures over one stretch, with the kinematics interpolated across it.
+struct Chambers<'a> {
+    m: &'a TwoChamber,
+    span: Span,
 }
 
 impl StiffSystem<2> for Chambers<'_> {
     fn rhs(&self, theta: f64, y: &Vector<2>) -> (Vector<2>, Matrix<2>) {
         let p = &self.m.params;
-        let x =
-            self.from.displacement_m + theta * (self.to.displacement_m - self.from.displacement_m);
-        let v = self.from.velocity_m_s + theta * (self.to.velocity_m_s - self.from.velocity_m_s);
+        let (from, to) = (&self.span.from, &self.span.to);
+        let x = from.displacement_m + theta * (to.displacement_m - from.displacement_m);
+        let v = from.velocity_m_s + theta * (to.velocity_m_s - from.velocity_m_s);
         let (a1, ap) = (p.annulus_area(), p.piston_area());
         let k = p.bulk_modulus_pa;
         let v1 = p.chamber1_volume_m3 - a1 * x;
-        let (q, dq) = self.flow.flow(y[0] - y[1]);
+        let (q, dq) = self.span.flow.flow(y[0] - y[1]);
         let g1 = k / v1;
         let f1 = g1 * (a1 * v - q);
         if !self.m.effects.has(Effect::GasSpring) {
@@ -454,26 +499,30 @@ impl TwoChamber {
             // into `REFINE` parts where the flow is open, and the one after an opening is
             // taken by step doubling (docs/physics.md, "Integration").
             let y0 = Vector::<2>::new(self.p1, self.p2);
-            let dpy = flow.yield_pressure();
-            let flowing = |y: &Vector<2>| (y[0] - y[1]).abs() > dpy;
+            let span = Span {
+                from: *from,
+                to: *to,
+                h,
+                flow,
+            };
             let uniform = |m: &Self| {
                 substeps(*from, *to, h, REFINE).try_fold(y0, |y, (a, b, hk)| {
-                    m.integrate_chambers(&y, &a, &b, hk, &flow)
+                    m.integrate_chambers(&y, &span.with(a, b, hk))
                 })
             };
             let y = if self.refine_next {
                 // The sub-step after a switch: where one step and two half steps agree
                 // (step doubling) and the flow keeps its state, the halves are the answer;
                 // otherwise `REFINE` parts, as before.
-                match self.relaxed_after_switch(&y0, from, to, h, &flow) {
+                match self.relaxed_after_switch(&y0, &span) {
                     Some(y) => Ok((y, false)),
-                    None => uniform(self).map(|y| (y, dpy > 0.0 && flowing(&y0) != flowing(&y))),
+                    None => uniform(self).map(|y| (y, span.switched(&y0, &y))),
                 }
             } else {
                 // One step over the whole sub-step first: where the flow keeps its state
                 // (all but the sub-steps at a stroke reversal) that is the answer.
-                self.chambers_step(&y0, from, to, h, &flow).and_then(|y1| {
-                    if !(dpy > 0.0 && flowing(&y0) != flowing(&y1)) {
+                self.chambers_step(&y0, &span).and_then(|y1| {
+                    if !span.switched(&y0, &y1) {
                         return Ok((y1, false));
                     }
                     // The flow opens or blocks within it: the sub-step is taken in
@@ -483,14 +532,14 @@ impl TwoChamber {
                     // the control loop's round trips: BENCHMARKS.md, "iceoryx2 control
                     // service".) Where the parts end on the side the flow started on,
                     // the whole sub-step cut around the switch decides, as before.
-                    let yu = self.switch_in_parts(&y0, &y1, from, to, h, &flow)?;
-                    if flowing(&y0) != flowing(&yu) {
+                    let yu = self.switch_in_parts(&y0, &y1, &span)?;
+                    if span.flowing(&y0) != span.flowing(&yu) {
                         // Only an opening flow leaves pressures relaxing into the next
                         // sub-step; once blocked (Q = 0) they change smoothly.
-                        return Ok((yu, flowing(&yu)));
+                        return Ok((yu, span.flowing(&yu)));
                     }
-                    let yb = self.refine_switch(&y0, y1, from, to, h, &flow)?;
-                    Ok(if flowing(&y0) != flowing(&yb) {
+                    let yb = self.refine_switch(&y0, y1, &span)?;
+                    Ok(if span.flowing(&y0) != span.flowing(&yb) {
                         (yu, true)
                     } else {
                         (yb, false)
@@ -524,35 +573,29 @@ impl TwoChamber {
         &self,
         y0: &Vector<2>,
         y1: &Vector<2>,
-        from: &DamperInput,
-        to: &DamperInput,
-        h: f64,
-        flow: &SlitFlow,
+        s: &Span,
     ) -> Result<Vector<2>, NotConverged> {
-        let dpy = flow.yield_pressure();
-        let flowing = |y: &Vector<2>| (y[0] - y[1]).abs() > dpy;
-        let g = |y: &Vector<2>| (y[0] - y[1]).abs() - dpy;
-        let at = |k: usize| from.lerp(to, k as f64 / REFINE as f64);
-        let part = h / REFINE as f64;
-        let opening = !flowing(y0);
+        let at = |k: usize| s.from.lerp(&s.to, k as f64 / REFINE as f64);
+        let part = s.h / REFINE as f64;
+        let opening = !s.flowing(y0);
         let (mut y, mut first) = (*y0, 0);
         if opening {
-            let theta = g(y0) / (g(y0) - g(y1));
+            let theta = s.excess(y0) / (s.excess(y0) - s.excess(y1));
             let k = ((theta * REFINE as f64).floor() as usize).min(REFINE - 1);
             if k > 0 {
-                let yk = self.chambers_step(y0, from, &at(k), k as f64 * part, flow)?;
-                if !flowing(&yk) {
+                let yk = self.chambers_step(y0, &s.with(s.from, at(k), k as f64 * part))?;
+                if !s.flowing(&yk) {
                     (y, first) = (yk, k);
                 }
             }
         }
         for k in first..REFINE {
-            let was_flowing = flowing(&y);
-            y = self.integrate_chambers(&y, &at(k), &at(k + 1), part, flow)?;
-            if !opening && was_flowing && !flowing(&y) && k + 1 < REFINE {
+            let was_flowing = s.flowing(&y);
+            y = self.integrate_chambers(&y, &s.with(at(k), at(k + 1), part))?;
+            if !opening && was_flowing && !s.flowing(&y) && k + 1 < REFINE {
                 let rest = (REFINE - k - 1) as f64 * part;
-                let yr = self.chambers_step(&y, &at(k + 1), to, rest, flow)?;
-                if !flowing(&yr) {
+                let yr = self.chambers_step(&y, &s.with(at(k + 1), s.to, rest))?;
+                if !s.flowing(&yr) {
                     return Ok(yr);
                 }
             }
@@ -562,75 +605,47 @@ impl TwoChamber {
 
     /// The chamber pressures over the sub-step after a switch by step doubling: one
     /// TR-BDF2 step over it and two over its halves. The halves are returned when the
-    /// flow keeps its state in all three and their Richardson estimate of the halves' error
-    /// in the rod force, |A1 e1 − Ap e2| with e = (y_halves − y_whole)/3 (TR-BDF2 is
-    /// second order), is below [`SETTLED_FORCE_TOL`] of the yield force; `None` otherwise (or where Newton
-    /// fails), and the caller takes the sub-step in parts.
+    /// flow keeps its state in all three and their Richardson estimate of the halves'
+    /// error in the rod force, |A1 e1 − Ap e2| with e = (y_halves − y_whole)/3 (TR-BDF2 is
+    /// second order), is below [`SETTLED_FORCE_TOL`] of the yield force; `None` otherwise
+    /// (or where Newton fails), and the caller takes the sub-step in parts.
     ///
     /// Where it settles this takes 3 TR-BDF2 steps instead of 8: the sub-steps after a
     /// reversal were the slow 1 % of the control loop (BENCHMARKS.md, "iceoryx2 control
     /// service").
-    fn relaxed_after_switch(
-        &self,
-        y0: &Vector<2>,
-        from: &DamperInput,
-        to: &DamperInput,
-        h: f64,
-        flow: &SlitFlow,
-    ) -> Option<Vector<2>> {
-        let dpy = flow.yield_pressure();
-        let flowing = |y: &Vector<2>| (y[0] - y[1]).abs() > dpy;
-        let mid = from.lerp(to, 0.5);
-        let first = self.chambers_step(y0, from, &mid, 0.5 * h, flow).ok()?;
-        let halves = self.chambers_step(&first, &mid, to, 0.5 * h, flow).ok()?;
-        let whole = self.chambers_step(y0, from, to, h, flow).ok()?;
-        let state = flowing(y0);
-        if dpy > 0.0 && [whole, first, halves].iter().any(|y| flowing(y) != state) {
+    fn relaxed_after_switch(&self, y0: &Vector<2>, s: &Span) -> Option<Vector<2>> {
+        let (first_half, second_half) = s.halves();
+        let first = self.chambers_step(y0, &first_half).ok()?;
+        let halves = self.chambers_step(&first, &second_half).ok()?;
+        let whole = self.chambers_step(y0, s).ok()?;
+        if [whole, first, halves].iter().any(|y| s.switched(y0, y)) {
             return None;
         }
         let e = (halves - whole) / 3.0;
         let p = &self.params;
         let force_error = (p.annulus_area() * e[0] - p.piston_area() * e[1]).abs();
-        (force_error <= SETTLED_FORCE_TOL * p.annulus_area() * dpy).then_some(halves)
+        let yield_force = p.annulus_area() * s.flow.yield_pressure();
+        (force_error <= SETTLED_FORCE_TOL * yield_force).then_some(halves)
     }
 
     /// One TR-BDF2 step of the chamber pressures. Where the flow opens or blocks within the
     /// step (|Δp| crosses Δp_y, a kink in Q(Δp)), the step is halved recursively down to
     /// `MIN_SUBSTEP_S`, so the kink is resolved finely while smooth stretches take long
     /// steps.
-    fn integrate_chambers(
-        &self,
-        y0: &Vector<2>,
-        from: &DamperInput,
-        to: &DamperInput,
-        h: f64,
-        flow: &SlitFlow,
-    ) -> Result<Vector<2>, NotConverged> {
-        let y1 = self.chambers_step(y0, from, to, h, flow)?;
-        self.refine_switch(y0, y1, from, to, h, flow)
+    fn integrate_chambers(&self, y0: &Vector<2>, s: &Span) -> Result<Vector<2>, NotConverged> {
+        let y1 = self.chambers_step(y0, s)?;
+        self.refine_switch(y0, y1, s)
     }
 
-    /// The chamber pressures after one TR-BDF2 step over the sub-step (halved only where
+    /// The chamber pressures after one TR-BDF2 step over the stretch (halved only where
     /// Newton fails), without looking at the flow's switches.
-    fn chambers_step(
-        &self,
-        y0: &Vector<2>,
-        from: &DamperInput,
-        to: &DamperInput,
-        h: f64,
-        flow: &SlitFlow,
-    ) -> Result<Vector<2>, NotConverged> {
-        let sys = Chambers {
-            m: self,
-            flow: *flow,
-            from: *from,
-            to: *to,
-        };
+    fn chambers_step(&self, y0: &Vector<2>, s: &Span) -> Result<Vector<2>, NotConverged> {
+        let sys = Chambers { m: self, span: *s };
         let tol = Tolerance {
             atol: Vector::<2>::new(1.0, 1.0),
             rtol: 1e-9,
         };
-        trbdf2_adaptive(&sys, y0, 0.0, 1.0, h, &tol)
+        trbdf2_adaptive(&sys, y0, 0.0, 1.0, s.h, &tol)
     }
 
     /// `y1`, the one-step result of [`TwoChamber::chambers_step`], unless the flow opened
@@ -640,18 +655,13 @@ impl TwoChamber {
         &self,
         y0: &Vector<2>,
         y1: Vector<2>,
-        from: &DamperInput,
-        to: &DamperInput,
-        h: f64,
-        flow: &SlitFlow,
+        s: &Span,
     ) -> Result<Vector<2>, NotConverged> {
         const MIN_SUBSTEP_S: f64 = 3.2e-5;
-        let dpy = flow.yield_pressure();
-        let flowing = |y: &Vector<2>| (y[0] - y[1]).abs() > dpy;
-        if dpy > 0.0 && flowing(y0) != flowing(&y1) && h > 2.0 * MIN_SUBSTEP_S {
-            let mid = from.lerp(to, 0.5);
-            let ym = self.integrate_chambers(y0, from, &mid, 0.5 * h, flow)?;
-            return self.integrate_chambers(&ym, &mid, to, 0.5 * h, flow);
+        if s.switched(y0, &y1) && s.h > 2.0 * MIN_SUBSTEP_S {
+            let (first_half, second_half) = s.halves();
+            let ym = self.integrate_chambers(y0, &first_half)?;
+            return self.integrate_chambers(&ym, &second_half);
         }
         Ok(y1)
     }
