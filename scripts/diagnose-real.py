@@ -8,7 +8,8 @@ as diagnose/tests/real_recordings.rs). Dyke: ransim_u.csv as it is.
     python3 scripts/diagnose-real.py [--bin target/release/mrtwin] [--selector calibrated]
 
 Prints a Markdown table: samples, held-out RMS baseline → final, findings with their first
-parameter, the number of unexplained entries, withdrawn effects. Standard library only.
+parameter, the number of unexplained entries, withdrawn effects, and the current knots the
+record does not identify. Standard library only.
 """
 import argparse
 import json
@@ -48,9 +49,10 @@ def row(name, path, binary, selector, tmp):
         for x in d["findings"]) or "—"
     withdrawn = ", ".join(w.split(":")[0] for w in d.get("withdrawn", [])) or "—"
     undecided = "; ".join(" or ".join(u["effects"]) for u in d.get("undecided", [])) or "—"
-    return "| %s | %d | %.1f → %.1f | %s | %s | %d | %s |" % (
+    knots = ", ".join("%.2f A" % k["current_a"] for k in d.get("unidentified_knots", [])) or "—"
+    return "| %s | %d | %.1f → %.1f | %s | %s | %d | %s | %s |" % (
         name, d["samples"], d["baseline"]["holdout_rmse_N"], d["final"]["holdout_rmse_N"],
-        finds, undecided, len(d["unexplained"]), withdrawn)
+        finds, undecided, len(d["unexplained"]), withdrawn, knots)
 
 
 def main():
@@ -59,8 +61,8 @@ def main():
     ap.add_argument("--selector", default="calibrated")
     args = ap.parse_args()
     print("| record | samples | held-out RMS (N), baseline → final | findings | undecided | "
-          "unexplained | withdrawn |")
-    print("|---|---|---|---|---|---|---|")
+          "unexplained | withdrawn | knots not identified |")
+    print("|---|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         for stem in ["5mm3Hz", "2mm5Hz", "10mm1Hz", "25mm0x5Hz"]:
             csv = os.path.join(tmp, stem + ".csv")

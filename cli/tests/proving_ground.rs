@@ -449,3 +449,36 @@ fn a_lag_whose_halves_disagree_gets_an_interval_that_holds_the_generated_value()
         "{truth_ms} ms outside {ci:?}"
     );
 }
+
+/// A record that almost never yields (proving-ground null seed 212: random strokes of
+/// ±0.1 mm after the first second at 200 Hz, 0.075 A held, then 1.27 A): neither knot's
+/// yield force and viscous coefficient is pinned down, they run to values that cancel on
+/// the fitting blocks, and the held-out block across the current step is predicted from
+/// their interpolation, far off. The report must say so (`unidentified_knots`), not only
+/// carry a large held-out RMS, and a real damper's knots must not be flagged.
+#[test]
+fn knots_a_record_does_not_identify_are_named() {
+    let (_, d) = generate_null_and_diagnose(212);
+    assert_reports_nothing(212, &d);
+    let knots = d["unidentified_knots"].as_array().unwrap();
+    eprintln!("{knots:#?}");
+    let currents: Vec<f64> = knots
+        .iter()
+        .map(|k| k["current_a"].as_f64().unwrap())
+        .collect();
+    assert!(
+        currents.iter().any(|i| (i - 1.27).abs() < 0.01),
+        "the 1.27 A knot is not named: {knots:?}"
+    );
+    for k in knots {
+        let why = k["why"].as_str().unwrap();
+        assert!(why.contains("times the record's peak force"), "{why}");
+    }
+    // Seed 41 (a Bingham null at 2 kHz, held currents) identifies all its knots.
+    let (_, d41) = generate_null_and_diagnose(41);
+    assert!(
+        d41["unidentified_knots"].as_array().unwrap().is_empty(),
+        "{}",
+        d41["unidentified_knots"]
+    );
+}

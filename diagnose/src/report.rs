@@ -38,6 +38,28 @@ pub struct Mismatch {
     pub description: String,
 }
 
+/// A current knot whose yield force or viscous coefficient the record does not pin down:
+/// at the record's peak speed V its `c V`, or its `F_y`, exceeds
+/// [`UnidentifiedKnot::LIMIT`] times the record's peak force, so it cancels against other
+/// terms (curvature, compliance, leak) where the knot has data, and a current between it
+/// and its neighbour is predicted from interpolated values that mean nothing.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct UnidentifiedKnot {
+    /// The knot's current \[A\].
+    pub current_a: f64,
+    /// Its fitted yield force \[N\].
+    pub yield_force_n: f64,
+    /// Its fitted viscous coefficient \[N s/m\].
+    pub viscous_n_s_m: f64,
+    /// What ran away, in words.
+    pub why: String,
+}
+
+impl UnidentifiedKnot {
+    /// How many times the record's peak force a knot's `c V` or `F_y` may reach.
+    pub const LIMIT: f64 = 100.0;
+}
+
 /// A fitted parameter with its 95 % interval.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct Parameter {
@@ -302,6 +324,9 @@ pub struct Report {
     pub fluid_shape: Vec<FluidShape>,
     /// Structure the final model leaves beyond noise (empty when the residual is noise).
     pub unexplained: Vec<Unexplained>,
+    /// Current knots of the final model that the record does not identify (their force
+    /// law ran to values no damper has; [`UnidentifiedKnot`]).
+    pub unidentified_knots: Vec<UnidentifiedKnot>,
     /// Every candidate tried.
     pub trials: Vec<Trial>,
     /// The final model.
@@ -417,6 +442,16 @@ pub fn render_markdown(r: &Report) -> String {
     }
     for w in &r.fluid_shape {
         let _ = writeln!(s, "- the fluid's shape (not a finding): {}", w.explanation);
+    }
+    if !r.unidentified_knots.is_empty() {
+        let _ = writeln!(
+            s,
+            "\n**Current knots this record does not identify** (forces at currents between \
+             them and their neighbours are not predicted):\n"
+        );
+        for k in &r.unidentified_knots {
+            let _ = writeln!(s, "- {:.3} A: {}", k.current_a, k.why);
+        }
     }
     if !r.unexplained.is_empty() {
         let _ = writeln!(s, "\n## Unexplained\n");

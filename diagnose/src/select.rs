@@ -481,6 +481,46 @@ fn effect_parameters_with_halves(
     out
 }
 
+/// The knots of `fit` whose `c V` (V the record's peak speed) or `F_y` exceed
+/// [`UnidentifiedKnot::LIMIT`] times the record's peak force.
+fn unidentified_knots(d: &Prepared, fit: &Fit) -> Vec<UnidentifiedKnot> {
+    let peak =
+        d.f.iter()
+            .zip(&d.excluded)
+            .filter(|(f, x)| !**x && f.is_finite())
+            .fold(0.0, |m: f64, (f, _)| m.max(f.abs()));
+    let nk = fit.layout.nk;
+    let limit = UnidentifiedKnot::LIMIT * peak;
+    (0..nk)
+        .filter_map(|k| {
+            let (fy, c) = (fit.theta[k], fit.theta[nk + k]);
+            let cv = c * d.velocity_scale;
+            let why = if cv > limit {
+                format!(
+                    "its viscous coefficient ran to {c:.3e} N s/m, {:.0} times the record's \
+                     peak force of {peak:.0} N at its peak speed of {:.3} m/s",
+                    cv / peak,
+                    d.velocity_scale
+                )
+            } else if fy > limit {
+                format!(
+                    "its yield force ran to {fy:.3e} N, {:.0} times the record's peak force of \
+                     {peak:.0} N (the fluid may never yield there)",
+                    fy / peak
+                )
+            } else {
+                return None;
+            };
+            Some(UnidentifiedKnot {
+                current_a: d.knots[k],
+                yield_force_n: fy,
+                viscous_n_s_m: c,
+                why,
+            })
+        })
+        .collect()
+}
+
 /// `fit`'s model refitted on the held-out blocks alone, from `fit`'s parameters: a second
 /// estimate of every parameter from the other half of the record. `None` where it does
 /// not converge to finite values.
@@ -1530,6 +1570,7 @@ pub fn diagnose_with_progress(
         withdrawn,
         fluid_shape: sel.fluid_shape,
         unexplained,
+        unidentified_knots: unidentified_knots(&d, &current),
         trials: sel.trials,
         final_model: summary(&current),
         final_parameters: base_parameters(&current),
