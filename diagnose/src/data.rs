@@ -142,6 +142,16 @@ pub struct Prepared {
 }
 
 impl Prepared {
+    /// The record's peak force \[N\]: the largest |F| over the samples not left out.
+    pub fn peak_force(&self) -> f64 {
+        self.f
+            .iter()
+            .zip(&self.excluded)
+            .filter(|(_, x)| !**x)
+            .map(|(f, _)| f.abs())
+            .fold(0.0, f64::max)
+    }
+
     /// Put the rig's anti-alias filter behind every model force (`None`: no filter): the
     /// current steps are placed again under it ([`crate::current::CurrentChannel::place`])
     /// and the sub-sample grid rebuilt.

@@ -484,11 +484,7 @@ fn effect_parameters_with_halves(
 /// The knots of `fit` whose `c V` (V the record's peak speed) or `F_y` exceed
 /// [`UnidentifiedKnot::LIMIT`] times the record's peak force.
 fn unidentified_knots(d: &Prepared, fit: &Fit) -> Vec<UnidentifiedKnot> {
-    let peak =
-        d.f.iter()
-            .zip(&d.excluded)
-            .filter(|(f, x)| !**x && f.is_finite())
-            .fold(0.0, |m: f64, (f, _)| m.max(f.abs()));
+    let peak = d.peak_force();
     let nk = fit.layout.nk;
     let limit = UnidentifiedKnot::LIMIT * peak;
     (0..nk)
@@ -1686,13 +1682,7 @@ pub const MIN_COMPLIANCE_DEFLECTION_PER_NOISE: f64 = 0.1;
 /// displacement noise at peak force; the compressibilities found where one was hidden
 /// deflect 0.5–2.6 times the noise.
 fn compliance_resolved(d: &Prepared, c: f64) -> bool {
-    let peak =
-        d.f.iter()
-            .zip(&d.excluded)
-            .filter(|(_, x)| !**x)
-            .map(|(f, _)| f.abs())
-            .fold(0.0, f64::max);
-    c * peak >= MIN_COMPLIANCE_DEFLECTION_PER_NOISE * d.measurement.displacement_noise_m
+    c * d.peak_force() >= MIN_COMPLIANCE_DEFLECTION_PER_NOISE * d.measurement.displacement_noise_m
 }
 
 /// Withdraw accepted effects whose parameter, once later effects are in, has fallen back

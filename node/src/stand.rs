@@ -8,7 +8,7 @@
 //! ([`StandParameters`], through [`crate::parameters`]); a set takes effect at the next sample
 //! ([`StandPlayer::retune`]).
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
@@ -26,7 +26,7 @@ use twin::EffectsChoice;
 use crate::conditioning::SensorSample;
 use crate::config::InvalidParam;
 use crate::parameters::{Served, ServedSettings};
-use crate::runner::NodeError;
+use crate::runner::{NodeError, StopWhen};
 use crate::transports::{open_serving, TransportKind, TransportSettings};
 
 /// Faults to inject (probabilities per sample).
@@ -307,11 +307,13 @@ pub fn run_paced<E>(
 ) -> Result<(), E> {
     let start = Instant::now();
     let dt = 1.0 / rate_hz;
+    let until = StopWhen {
+        flag: stop,
+        deadline: duration.map(|d| start + d),
+    };
     for k in 0u64.. {
         let due = start + Duration::from_secs_f64(k as f64 * dt);
-        if stop.is_some_and(|f| f.load(Ordering::Relaxed))
-            || duration.is_some_and(|d| due >= start + d)
-        {
+        if until.reached(due) {
             break;
         }
         pace(due, summary);

@@ -533,13 +533,13 @@ impl TwoChamber {
                     // service".) Where the parts end on the side the flow started on,
                     // the whole sub-step cut around the switch decides, as before.
                     let yu = self.switch_in_parts(&y0, &y1, &span)?;
-                    if span.flowing(&y0) != span.flowing(&yu) {
+                    if span.switched(&y0, &yu) {
                         // Only an opening flow leaves pressures relaxing into the next
                         // sub-step; once blocked (Q = 0) they change smoothly.
                         return Ok((yu, span.flowing(&yu)));
                     }
                     let yb = self.refine_switch(&y0, y1, &span)?;
-                    Ok(if span.flowing(&y0) != span.flowing(&yb) {
+                    Ok(if span.switched(&y0, &yb) {
                         (yu, true)
                     } else {
                         (yb, false)
