@@ -7,9 +7,10 @@
 //!   paper's two-chamber damper, compressibility + gas spring) stepped once per request
 //!   on a 1 kHz stroke timeline.
 //!
-//! Server in a thread of this process, client in the main thread; both busy poll. The two
-//! cases alternate in rounds (only the active case's server polls; the other sleeps) so
-//! both see the same machine load. Run:
+//! Server in a thread of this process, client in the main thread; both busy poll. The
+//! cases alternate in rounds (only the active case's server polls; the others park) so
+//! all see the same machine load. Beside the round trips: the model's own time per
+//! request inside the server thread, and the model alone without transport. Run:
 //!
 //! ```text
 //! cargo bench -p bridge --features iceoryx2 --bench iceoryx2_loop [-- REQUESTS ROUNDS]
@@ -21,6 +22,7 @@ mod twin_handler;
 
 use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::Arc;
+use std::thread::Thread;
 use std::time::{Duration, Instant};
 
 use bridge::iceoryx2::controller::quantile;
@@ -62,24 +64,40 @@ fn echo(r: &ShmRequest) -> ShmPrediction {
     }
 }
 
-/// Wait while `state` is none of `mine`, sleeping (another case is measured meanwhile);
-/// returns the case to serve, `None` at the end.
+/// Wait while `state` is none of `mine`, parked (another case is measured meanwhile);
+/// returns the case to serve, `None` at the end. [`switch_to`] unparks the servers.
+///
+/// Parked, not sleeping in a loop: a server that slept 200 µs per look woke every
+/// ≈ 265 µs (timer slack) and took a core from the two busy-polling threads of the case
+/// being measured, a ≈ 20 µs stall every 265 µs. That stall hit about one request in
+/// 55 of the twin case (longer requests) against one in 90 of raw, so it set the twin's
+/// p99 and not raw's (BENCHMARKS.md, "iceoryx2 control service").
 fn parked(state: &AtomicU8, mine: &[u8]) -> Option<u8> {
     loop {
         match state.load(Ordering::Acquire) {
             STOP => return None,
             s if mine.contains(&s) => return Some(s),
-            _ => std::thread::sleep(Duration::from_micros(200)),
+            // Bounded: a lost unpark costs at most this, never a hang.
+            _ => std::thread::park_timeout(Duration::from_millis(100)),
         }
     }
 }
 
-/// Make `case` the polling server and wait (at most 10 s) until it polls. `ready` is
-/// cleared first: a server that slept through the other case's whole round (loaded
-/// machine) is still in its polling loop and re-announces itself from there.
-fn switch_to(state: &AtomicU8, ready: &AtomicU8, case: u8) -> Result<(), String> {
+/// Make `case` the polling server, unpark the servers, and wait (at most 10 s) until it
+/// polls. `ready` is cleared first: a server that was descheduled through the other
+/// case's whole round (loaded machine) is still in its polling loop and re-announces
+/// itself from there.
+fn switch_to(
+    state: &AtomicU8,
+    ready: &AtomicU8,
+    servers: &[&Thread],
+    case: u8,
+) -> Result<(), String> {
     ready.store(IDLE, Ordering::Release);
     state.store(case, Ordering::Release);
+    for server in servers {
+        server.unpark();
+    }
     let deadline = Instant::now() + Duration::from_secs(10);
     while ready.load(Ordering::Acquire) != case {
         if Instant::now() > deadline {
@@ -179,9 +197,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut server = ControlServer::new(&cfg)?;
         // This server busy polls: its clients need not notify it.
         server.set_sleeps(false);
-        std::thread::spawn(move || -> Result<u64, String> {
+        std::thread::spawn(move || -> Result<(u64, Vec<f64>), String> {
             let mut twin = TwinHandler::paper();
-            let mut model = |r: &ShmRequest| twin.handle(r);
+            // The model's own time inside the server thread, per request (µs).
+            let mut served = Vec::with_capacity(2 * total as usize);
+            let mut model = |r: &ShmRequest| {
+                let t0 = Instant::now();
+                let reply = twin.handle(r);
+                served.push(t0.elapsed().as_secs_f64() * 1e6);
+                reply
+            };
             let mut echo = echo;
             while let Some(case) = parked(&state, &[TWIN, WRAP]) {
                 let handler: &mut dyn FnMut(&ShmRequest) -> ShmPrediction =
@@ -191,7 +216,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     server.serve_pending(handler).map_err(|e| e.to_string())?;
                 }
             }
-            Ok(server.answered())
+            let answered = server.answered();
+            Ok((answered, served))
         })
     };
 
@@ -210,6 +236,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     twin_client.wait_for_server(Duration::from_secs(10))?;
 
     let timeout = Duration::from_secs(1);
+    let servers = [raw_server.thread(), twin_server.thread()];
     let mut raw_lat = Vec::with_capacity(total as usize);
     let mut twin_lat = Vec::with_capacity(total as usize);
     let mut wrap_lat = Vec::with_capacity(total as usize);
@@ -219,7 +246,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for round in 0..=rounds {
         // Round 0 is the warm-up (1 000 requests each, not recorded).
         let n = if round == 0 { 1000 } else { per_round };
-        switch_to(&state, &ready, RAW)?;
+        switch_to(&state, &ready, &servers, RAW)?;
         for i in 0..n {
             let t0 = Instant::now();
             let pending = raw_client.send_copy(request(i))?;
@@ -237,7 +264,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 raw_lat.push(dt);
             }
         }
-        switch_to(&state, &ready, WRAP)?;
+        switch_to(&state, &ready, &servers, WRAP)?;
         for _ in 0..n {
             let req = request(wrap_seq);
             wrap_seq += 1;
@@ -249,7 +276,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 wrap_lat.push(dt);
             }
         }
-        switch_to(&state, &ready, TWIN)?;
+        switch_to(&state, &ready, &servers, TWIN)?;
         for _ in 0..n {
             let req = request(twin_seq);
             twin_seq += 1;
@@ -265,8 +292,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     state.store(STOP, Ordering::Release);
+    for server in servers {
+        server.unpark();
+    }
     raw_server.join().expect("raw server")?;
-    let answered = twin_server.join().expect("twin server")?;
+    let (answered, served) = twin_server.join().expect("twin server")?;
+    // The warm-up round's model steps are not recorded on the client either.
+    let served = served[served.len().saturating_sub(twin_lat.len())..].to_vec();
     assert_eq!(answered, twin_seq + wrap_seq);
     assert!(
         force_sum > 0.0,
@@ -297,6 +329,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "ControlServer/ControlClient, two-chamber paper model step",
             twin_lat,
         ),
+        ("(model step inside the server thread)", served),
         ("(model step alone, no transport)", model_lat),
     ];
     let mut p99 = Vec::new();

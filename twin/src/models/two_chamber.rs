@@ -565,10 +565,22 @@ impl TwoChamber {
 
     /// The chamber pressures over a sub-step in which the flow opens or blocks (`y1`, the
     /// one-step probe, on the other side of the yield pressure from `y0`), in `REFINE`
-    /// parts, each cut further around the switch, except where the flow is blocked: there
-    /// Q = 0 and the pressures follow the rod smoothly, so the blocked stretch before an
-    /// opening (up to the part the probe puts the switch in, by linear interpolation of
-    /// |Δp| − Δp_y) and the blocked rest after a blocking are each one step.
+    /// parts, the one the probe puts the switch in (by linear interpolation of
+    /// |Δp| − Δp_y) taken straight as two halves, each halved further while it holds the
+    /// switch. Cheaper where the pressures change smoothly:
+    /// - the stretch before the switch is one step where it ends on the side it started:
+    ///   blocked before an opening (Q = 0), flowing before a blocking (as in an ordinary
+    ///   sub-step; it stops one part short of the switch's part, where a Herschel–Bulkley
+    ///   flow near its yield stress is steep: with it up to the switch's part the RMS
+    ///   error at 5 Hz was 3× larger);
+    /// - after a blocking, the blocked rest is one step;
+    /// - after an opening, the rest is taken by step doubling
+    ///   ([`TwoChamber::relaxed_after_switch`]) where more than 3 parts are left and it
+    ///   settles.
+    ///
+    /// A switch sub-step costs 5–7 TR-BDF2 steps where it used to cost 6–12: these
+    /// sub-steps are the slow 1 % of the control loop (BENCHMARKS.md, "iceoryx2 control
+    /// service").
     fn switch_in_parts(
         &self,
         y0: &Vector<2>,
@@ -579,23 +591,45 @@ impl TwoChamber {
         let part = s.h / REFINE as f64;
         let opening = !s.flowing(y0);
         let (mut y, mut first) = (*y0, 0);
-        if opening {
-            let theta = s.excess(y0) / (s.excess(y0) - s.excess(y1));
-            let k = ((theta * REFINE as f64).floor() as usize).min(REFINE - 1);
-            if k > 0 {
-                let yk = self.chambers_step(y0, &s.with(s.from, at(k), k as f64 * part))?;
-                if !s.flowing(&yk) {
-                    (y, first) = (yk, k);
-                }
+        // The stretch before the switch in one step, where it ends on the side it started.
+        let theta = s.excess(y0) / (s.excess(y0) - s.excess(y1));
+        let at_switch = ((theta * REFINE as f64).floor() as usize).min(REFINE - 1);
+        let k = if opening {
+            at_switch
+        } else {
+            at_switch.saturating_sub(1)
+        };
+        if k > 0 {
+            let yk = self.chambers_step(y0, &s.with(s.from, at(k), k as f64 * part))?;
+            if s.flowing(&yk) != opening {
+                (y, first) = (yk, k);
             }
         }
         for k in first..REFINE {
             let was_flowing = s.flowing(&y);
-            y = self.integrate_chambers(&y, &s.with(at(k), at(k + 1), part))?;
-            if !opening && was_flowing && !s.flowing(&y) && k + 1 < REFINE {
-                let rest = (REFINE - k - 1) as f64 * part;
-                let yr = self.chambers_step(&y, &s.with(at(k + 1), s.to, rest))?;
+            let this = s.with(at(k), at(k + 1), part);
+            y = if k == at_switch {
+                // The part the probe puts the switch in: straight to its halves.
+                let (first_half, second_half) = this.halves();
+                let ym = self.integrate_chambers(&y, &first_half)?;
+                self.integrate_chambers(&ym, &second_half)?
+            } else {
+                self.integrate_chambers(&y, &this)?
+            };
+            let rest = s.with(at(k + 1), s.to, (REFINE - k - 1) as f64 * part);
+            if k + 1 == REFINE || was_flowing == s.flowing(&y) {
+                continue;
+            }
+            if was_flowing {
+                // Blocked: the rest in one step while it stays blocked.
+                let yr = self.chambers_step(&y, &rest)?;
                 if !s.flowing(&yr) {
+                    return Ok(yr);
+                }
+            } else if REFINE - k - 1 > 3 {
+                // Opened: the pressures relax on a fast time constant; the rest by step
+                // doubling where it settles (3 steps instead of the parts left).
+                if let Some(yr) = self.relaxed_after_switch(&y, &rest) {
                     return Ok(yr);
                 }
             }
