@@ -192,12 +192,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         })
     };
     // The twin's control server: echo (wrapper overhead) or a real model step.
+    // Created in its serving thread (single-threaded ports); the thread says whether it
+    // could.
+    let (created_tx, created_rx) = std::sync::mpsc::sync_channel::<Result<(), String>>(1);
     let twin_server = {
         let (state, ready) = (state.clone(), ready.clone());
-        let mut server = ControlServer::new(&cfg)?;
-        // This server busy polls: its clients need not notify it.
-        server.set_sleeps(false);
+        let cfg = cfg.clone();
         std::thread::spawn(move || -> Result<(u64, Vec<f64>), String> {
+            let mut server = match ControlServer::new(&cfg) {
+                Ok(server) => server,
+                Err(e) => {
+                    let _ = created_tx.send(Err(e.to_string()));
+                    return Err(e.to_string());
+                }
+            };
+            // This server busy polls: its clients need not notify it.
+            server.set_sleeps(false);
+            let _ = created_tx.send(Ok(()));
             let mut twin = TwinHandler::paper();
             // The model's own time inside the server thread, per request (µs).
             let mut served = Vec::with_capacity(2 * total as usize);
@@ -228,6 +239,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .request_response::<ShmRequest, ShmPrediction>()
         .open_or_create()?;
     let raw_client = raw_service.client_builder().create()?;
+    created_rx.recv_timeout(Duration::from_secs(10))??;
     let mut twin_client = ControlClient::new(&cfg)?;
     let deadline = Instant::now() + Duration::from_secs(10);
     while raw_service.dynamic_config().number_of_servers() == 0 && Instant::now() < deadline {

@@ -52,10 +52,14 @@ struct ServerThread {
 impl ServerThread {
     /// A control server with a real twin model, polled with a backoff, in a thread.
     fn start(cfg: &Iceoryx2Config) -> Self {
-        let mut server = ControlServer::new(cfg).expect("control server");
         let stop = Arc::new(AtomicBool::new(false));
         let flag = stop.clone();
+        // Created in its serving thread (single-threaded ports); started before return.
+        let (created_tx, created_rx) = std::sync::mpsc::sync_channel(1);
+        let cfg = cfg.clone();
         let handle = std::thread::spawn(move || {
+            let mut server = ControlServer::new(&cfg).expect("control server");
+            created_tx.send(()).expect("test waits for the server");
             let mut twin = TwinHandler::paper();
             let mut report = ServerReport::default();
             let mut backoff = Backoff::new(Duration::from_micros(200), Duration::from_micros(50));
@@ -83,6 +87,9 @@ impl ServerThread {
             report.what_ifs = twin.what_ifs;
             Ok(report)
         });
+        created_rx
+            .recv_timeout(Duration::from_secs(10))
+            .expect("control server created within 10 s");
         Self { stop, handle }
     }
 
@@ -425,16 +432,22 @@ fn pipelined_requests_limits_and_bad_settings() {
         .is_none());
     assert_eq!(server.serve_pending(&mut echo).unwrap(), 1);
     assert_eq!(server.undelivered(), 1);
-    let srv = std::thread::spawn(move || {
-        let deadline = Instant::now() + Duration::from_secs(5);
-        while Instant::now() < deadline && server.serve_pending(&mut echo).unwrap() == 0 {
-            std::thread::yield_now();
+    // (Pipelined: server and client are single-threaded ports, so both stay in this
+    // thread; `request` against a serving thread is the cross-process tests' part.)
+    client.send(&req(11)).unwrap();
+    assert_eq!(server.serve_pending(&mut echo).unwrap(), 1);
+    let deadline = Instant::now() + Duration::from_secs(5);
+    let p = loop {
+        if let Some(p) = client.receive().unwrap() {
+            break p;
         }
-        server
-    });
-    let p = client.request(&req(11), Duration::from_secs(5)).unwrap();
+        assert!(
+            Instant::now() < deadline,
+            "no reply to request 11 within 5 s"
+        );
+        std::thread::yield_now();
+    };
     assert_eq!(p.seq, 11);
-    let server = srv.join().unwrap();
     assert_eq!(server.answered(), 5);
 
     let bad = Iceoryx2Config {

@@ -120,8 +120,12 @@ fn spawn_twin(
     params: TwinNodeParams,
     stop: Arc<AtomicBool>,
 ) -> std::thread::JoinHandle<node::conditioning::StreamCounters> {
-    let mut node = TwinNode::new(params, "/bench_twin").expect("twin node");
-    std::thread::spawn(move || {
+    // Created in its own thread (the iceoryx2 control server's ports are single-threaded),
+    // and up before the clients start.
+    let (up_tx, up_rx) = std::sync::mpsc::sync_channel(1);
+    let handle = std::thread::spawn(move || {
+        let mut node = TwinNode::new(params, "/bench_twin").expect("twin node");
+        up_tx.send(()).expect("bench waits for the twin");
         node.run(
             StopWhen {
                 flag: Some(&stop),
@@ -130,7 +134,11 @@ fn spawn_twin(
             &mut |_| {},
         )
         .counters
-    })
+    });
+    up_rx
+        .recv_timeout(std::time::Duration::from_secs(30))
+        .expect("twin node up within 30 s");
+    handle
 }
 
 fn run(c: &Case, path: Path, rate: f64, seconds: f64) -> Row {

@@ -103,6 +103,10 @@ pub type ParamsSource = Box<dyn FnMut() -> Option<Result<TwinNodeParams, String>
 pub const PARAMS_POLL_S: f64 = 0.5;
 
 /// The twin node.
+///
+/// With the `iceoryx2` feature it is not `Send`: its control server's ports are
+/// single-threaded (`bridge::iceoryx2::ControlServer`), so create it in the thread that
+/// runs it.
 pub struct TwinNode {
     core: TwinCore,
     params_source: Option<ParamsSource>,

@@ -11,7 +11,7 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::server::Server;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::{
-    ipc_threadsafe, Node, NodeName, PortFactory, ServiceName, SignalHandlingMode,
+    ipc, ipc_threadsafe, Node, NodeName, PortFactory, ServiceName, SignalHandlingMode,
 };
 use iceoryx2::service::port_factory::request_response::PortFactory as RequestResponseFactory;
 use msgs::shm::{ShmPrediction, ShmRequest, ShmSample};
@@ -22,9 +22,17 @@ use super::{Iceoryx2Config, NAME};
 use crate::transport::{Message, Topic, Transport, TransportError};
 use crate::wake::Doorbell;
 
-/// The iceoryx2 service variant: inter-process, ports `Send` (the node's loop may run in
-/// any thread).
+/// The iceoryx2 service variant of the publish–subscribe transport: inter-process, ports
+/// `Send` (the node's loop may run in any thread).
 pub(super) type Svc = ipc_threadsafe::Service;
+
+/// The service variant of the control service's request–response ports: inter-process,
+/// single-threaded (no mutex per port operation). A [`ControlServer`] or [`ControlClient`]
+/// is therefore not `Send`: create it in the thread that serves or asks. The mutex-protected
+/// variant cost about 0.25 µs per round trip and 0.4 µs at its p99 (BENCHMARKS.md,
+/// "iceoryx2 control service"). Both variants share every shared-memory resource, so
+/// either side may use either.
+pub(super) type CtlSvc = ipc::Service;
 
 type PubSubFactory<T> = iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, T, ()>;
 
@@ -41,12 +49,12 @@ pub(super) fn service_name(name: &str) -> Result<ServiceName, TransportError> {
 }
 
 /// A node with signal handling off, after removing what dead nodes left behind.
-fn make_node(role: &str) -> Result<Node<Svc>, TransportError> {
+fn make_node<S: iceoryx2::service::Service>(role: &str) -> Result<Node<S>, TransportError> {
     let name = NodeName::new(role).map_err(|e| dbg_err(format!("node name `{role}`"), e))?;
     let node = NodeBuilder::new()
         .name(&name)
         .signal_handling_mode(SignalHandlingMode::Disabled)
-        .create::<Svc>()
+        .create::<S>()
         .map_err(|e| dbg_err(format!("create node `{role}`"), e))?;
     // Dead nodes (crashed processes) still hold ports; free them so a restarted peer fits
     // in the port limits. Nodes that cannot be cleaned now are skipped, not fatal.
@@ -56,9 +64,9 @@ fn make_node(role: &str) -> Result<Node<Svc>, TransportError> {
 
 /// The control service with the configured limits (same call on both sides).
 fn control_service(
-    node: &Node<Svc>,
+    node: &Node<CtlSvc>,
     cfg: &Iceoryx2Config,
-) -> Result<RequestResponseFactory<Svc, ShmRequest, (), ShmPrediction, ()>, TransportError> {
+) -> Result<RequestResponseFactory<CtlSvc, ShmRequest, (), ShmPrediction, ()>, TransportError> {
     cfg.validate()?;
     let name = cfg.control_service();
     node.service_builder(&service_name(&name)?)
@@ -451,8 +459,8 @@ pub fn rejected_reply(req: &ShmRequest) -> ShmPrediction {
 /// Polling: [`ControlServer::serve_pending`] never blocks; the caller's loop decides how
 /// to wait between calls (busy poll for the lowest latency, or a [`Backoff`]).
 pub struct ControlServer {
-    server: Server<Svc, ShmRequest, (), ShmPrediction, ()>,
-    service: RequestResponseFactory<Svc, ShmRequest, (), ShmPrediction, ()>,
+    server: Server<CtlSvc, ShmRequest, (), ShmPrediction, ()>,
+    service: RequestResponseFactory<CtlSvc, ShmRequest, (), ShmPrediction, ()>,
     budget: usize,
     answered: u64,
     undelivered: u64,
@@ -461,8 +469,10 @@ pub struct ControlServer {
     /// Told to clients in every reply ([`ShmPrediction::server_sleeps`]).
     sleeps: bool,
     _listener: WakeListener,
-    // Dropped last: the ports above belong to it.
-    _node: Node<Svc>,
+    // Dropped last: the ports above belong to them (the wake-up listener's thread needs
+    // `Send` ports, hence its own node).
+    _node: Node<CtlSvc>,
+    _listener_node: Node<Svc>,
 }
 
 impl std::fmt::Debug for ControlServer {
@@ -477,7 +487,7 @@ impl std::fmt::Debug for ControlServer {
 impl ControlServer {
     /// Open (or create) `<prefix>/twin/control` and become its server.
     pub fn new(cfg: &Iceoryx2Config) -> Result<Self, TransportError> {
-        let node = make_node("mrtwin-control-server")?;
+        let node = make_node::<CtlSvc>("mrtwin-control-server")?;
         let service = control_service(&node, cfg)?;
         let server = service.server_builder().create().map_err(|e| {
             dbg_err(
@@ -490,7 +500,9 @@ impl ControlServer {
         })?;
         let doorbell = Doorbell::new();
         let name = cfg.control_service();
-        let listener = WakeListener::spawn(&node, &name, cfg.max_clients, 1, doorbell.clone())?;
+        let listener_node = make_node::<Svc>("mrtwin-control-wake")?;
+        let listener =
+            WakeListener::spawn(&listener_node, &name, cfg.max_clients, 1, doorbell.clone())?;
         Ok(Self {
             server,
             service,
@@ -501,6 +513,7 @@ impl ControlServer {
             sleeps: true,
             _listener: listener,
             _node: node,
+            _listener_node: listener_node,
         })
     }
 
@@ -575,16 +588,16 @@ pub const POLLING_SERVER_STAYS_HOT: Duration = Duration::from_millis(2);
 /// [`ControlClient::send`] and [`ControlClient::receive`] pipeline up to
 /// [`Iceoryx2Config::max_in_flight`] requests.
 pub struct ControlClient {
-    client: Client<Svc, ShmRequest, (), ShmPrediction, ()>,
-    service: RequestResponseFactory<Svc, ShmRequest, (), ShmPrediction, ()>,
-    in_flight: VecDeque<PendingResponse<Svc, ShmRequest, (), ShmPrediction, ()>>,
+    client: Client<CtlSvc, ShmRequest, (), ShmPrediction, ()>,
+    service: RequestResponseFactory<CtlSvc, ShmRequest, (), ShmPrediction, ()>,
+    in_flight: VecDeque<PendingResponse<CtlSvc, ShmRequest, (), ShmPrediction, ()>>,
     /// Wakes the server after each request while it says it sleeps (the first request
     /// always notifies), and after a pause of half [`POLLING_SERVER_STAYS_HOT`].
-    wake: WakeNotifier,
+    wake: WakeNotifier<CtlSvc>,
     notify: bool,
     last_send: Option<Instant>,
     // Dropped last: the ports above belong to it.
-    _node: Node<Svc>,
+    _node: Node<CtlSvc>,
 }
 
 impl std::fmt::Debug for ControlClient {
@@ -599,7 +612,7 @@ impl ControlClient {
     /// Open (or create) `<prefix>/twin/control` as a client. The server may come later:
     /// see [`ControlClient::wait_for_server`].
     pub fn new(cfg: &Iceoryx2Config) -> Result<Self, TransportError> {
-        let node = make_node("mrtwin-control-client")?;
+        let node = make_node::<CtlSvc>("mrtwin-control-client")?;
         let service = control_service(&node, cfg)?;
         let client = service
             .client_builder()
@@ -640,7 +653,7 @@ impl ControlClient {
     fn send_pending(
         &mut self,
         req: &ShmRequest,
-    ) -> Result<PendingResponse<Svc, ShmRequest, (), ShmPrediction, ()>, TransportError> {
+    ) -> Result<PendingResponse<CtlSvc, ShmRequest, (), ShmPrediction, ()>, TransportError> {
         let pending = self
             .client
             .send_copy(*req)
@@ -740,12 +753,11 @@ impl ControlClient {
     }
 }
 
-// The node's loop may own any of these in any thread.
+// The node's loop may own the transport in any thread; the control server and client
+// (single-threaded ports, [`CtlSvc`]) stay in the thread that created them.
 const _: fn() = || {
     fn send<T: Send>() {}
     send::<Iceoryx2Transport>();
-    send::<ControlServer>();
-    send::<ControlClient>();
 };
 
 /// Busy poll, then yield the core: a reply normally comes within a few µs, so the

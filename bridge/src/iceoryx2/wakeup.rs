@@ -30,12 +30,12 @@ fn wake_service_name(service: &str) -> String {
 
 /// Open or create `<service>/wake` for `senders` notifiers and `receivers` listeners
 /// (same limits on every side, as for the data services).
-fn open(
-    node: &Node<Svc>,
+fn open<S: iceoryx2::service::Service>(
+    node: &Node<S>,
     service: &str,
     senders: usize,
     receivers: usize,
-) -> Result<iceoryx2::service::port_factory::event::PortFactory<Svc>, TransportError> {
+) -> Result<iceoryx2::service::port_factory::event::PortFactory<S>, TransportError> {
     let name = wake_service_name(service);
     node.service_builder(&service_name(&name)?)
         .event()
@@ -46,17 +46,17 @@ fn open(
         .map_err(|e| dbg_err(format!("open or create service `{name}`"), e))
 }
 
-/// The sender's side: notify after each send.
+/// The sender's side: notify after each send (`S`, the sender's service variant).
 #[derive(Debug)]
-pub(super) struct WakeNotifier {
-    notifier: Notifier<Svc>,
+pub(super) struct WakeNotifier<S: iceoryx2::service::Service = Svc> {
+    notifier: Notifier<S>,
     service: String,
 }
 
-impl WakeNotifier {
+impl<S: iceoryx2::service::Service> WakeNotifier<S> {
     /// A notifier on `<service>/wake`.
     pub(super) fn new(
-        node: &Node<Svc>,
+        node: &Node<S>,
         service: &str,
         senders: usize,
         receivers: usize,
