@@ -594,15 +594,15 @@ impl TwoChamber {
         // The stretch before the switch in one step, where it ends on the side it started.
         let theta = s.excess(y0) / (s.excess(y0) - s.excess(y1));
         let at_switch = ((theta * REFINE as f64).floor() as usize).min(REFINE - 1);
-        let k = if opening {
+        let before = if opening {
             at_switch
         } else {
             at_switch.saturating_sub(1)
         };
-        if k > 0 {
-            let yk = self.chambers_step(y0, &s.with(s.from, at(k), k as f64 * part))?;
-            if s.flowing(&yk) != opening {
-                (y, first) = (yk, k);
+        if before > 0 {
+            let yb = self.chambers_step(y0, &s.with(s.from, at(before), before as f64 * part))?;
+            if s.flowing(&yb) != opening {
+                (y, first) = (yb, before);
             }
         }
         for k in first..REFINE {
@@ -616,10 +616,10 @@ impl TwoChamber {
             } else {
                 self.integrate_chambers(&y, &this)?
             };
-            let rest = s.with(at(k + 1), s.to, (REFINE - k - 1) as f64 * part);
             if k + 1 == REFINE || was_flowing == s.flowing(&y) {
                 continue;
             }
+            let rest = s.with(at(k + 1), s.to, (REFINE - k - 1) as f64 * part);
             if was_flowing {
                 // Blocked: the rest in one step while it stays blocked.
                 let yr = self.chambers_step(&y, &rest)?;
