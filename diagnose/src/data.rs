@@ -91,6 +91,10 @@ pub struct Prepared {
     pub h: Vec<f64>,
     /// Current knots (the distinct current levels, or a grid when there are many).
     pub knots: Vec<f64>,
+    /// Weights λ of the knots' smoothness penalty in every fit, per family (F_y, c V,
+    /// c₂; [`crate::model::knot_penalty`]), in weighted-SSE units per N²; 0 until the
+    /// baseline has set them ([`crate::model::knot_smoothing`]).
+    pub knot_smoothing: [f64; 3],
     /// The rig's anti-alias filter every model force passes through before it is compared
     /// with the measurement (fitted with the baseline; `None` until then, or when no
     /// filter fits better).
@@ -861,6 +865,7 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
         h,
         held_levels,
         knots,
+        knot_smoothing: [0.0; 3],
         anti_alias: None,
         subgrid: crate::subsample::SubGrid::default(),
         current,

@@ -542,7 +542,7 @@ pub fn fit_candidate_limited(d: &Prepared, current: &Fit, e: Effect, max_iter: u
         Effect::FieldLag => vec![vec![0.003], vec![0.01], vec![0.03]],
         Effect::FluidCompressibility => [0.002, 0.01, 0.05]
             .iter()
-            .map(|f| vec![f * xr / fpeak])
+            .map(|f| vec![f * xr / fpeak, 0.0])
             .collect(),
         // A Dahl friction of F_c taken from every knot's yield force (a Coulomb force is
         // in them while the candidate is out), at presliding displacements of 10, 30 and
@@ -797,12 +797,28 @@ fn explanation(e: Effect, p: &BTreeMap<String, Parameter>) -> String {
              time constant {:.1} ms: magnetic field rise time / eddy currents",
             g("field_time_constant")
         ),
-        Effect::FluidCompressibility => format!(
-            "the force lags velocity after each reversal (the F–v loop opens near v = 0): a \
-             compliance of {:.4} mm/kN between piston and gap, i.e. a finite effective bulk \
-             modulus of the fluid in the chambers",
-            g("chamber_compliance")
-        ),
+        Effect::FluidCompressibility => {
+            // γ in 1/kN; 1/γ is the static chamber pressure times its piston area.
+            let gamma = g("pressure_stiffening");
+            let stiffening = if gamma.is_finite() && gamma.abs() >= 1e-3 {
+                format!(
+                    ", falling as the force rises to C/(1 + γF)² with γ = {gamma:.3}/kN: \
+                     entrained air, which stiffens with the chamber's pressure (the static \
+                     pressure times the annulus area would be 1/|γ| = {:.1} kN, \
+                     compressed by {} force)",
+                    1.0 / gamma.abs(),
+                    if gamma > 0.0 { "positive" } else { "negative" }
+                )
+            } else {
+                String::new()
+            };
+            format!(
+                "the force lags velocity after each reversal (the F–v loop opens near v = 0): \
+                 a compliance of {:.4} mm/kN between piston and gap at zero force{stiffening}, \
+                 i.e. a finite effective bulk modulus of the fluid in the chambers",
+                g("chamber_compliance")
+            )
+        }
     }
 }
 
@@ -1186,12 +1202,23 @@ fn forward_selection(
             remaining.retain(|x| *x != Effect::SealFriction);
             continue;
         };
+        // Under the calibrated selector the scores are T_e, the fitting SSE a candidate
+        // removes in noise units: a lead over the other larger than the best's own null
+        // threshold is SSE the other cannot explain, so the two are told apart however
+        // close their T_e are in ratio (seeds 149, 184, 254: a compressibility at 13–43 σ_F
+        // led a seal friction by 4–8× its threshold, T_e 9 % apart, and went undecided).
+        let lead_beyond_null = |v: &Verdict| {
+            best.calibrated
+                .as_ref()
+                .is_some_and(|c| best.score - v.score > c.threshold)
+        };
         for v in &verdicts {
             if v.judged.effect != best.judged.effect
                 && v.judged.partner.is_none()
                 && best.judged.partner.is_none()
                 && v.pass
                 && (v.score - best.score).abs() <= th.tie_fraction * best.score.abs()
+                && !lead_beyond_null(v)
             {
                 pending_ties.push((best.judged.effect, v.judged.effect));
             }
@@ -1427,6 +1454,7 @@ pub fn diagnose_with_progress(
     // Errors in variables: weight each sample by how predictable its force is under the
     // rebuilt velocity's error, then refit.
     d.weight = crate::model::predictive_weights(&d, &first);
+    d.knot_smoothing = crate::model::knot_smoothing(&d, &first);
     let mut base = fit(&d, &first.layout, &first.theta);
     // The yield softness is a property of the fluid the baseline has settled: candidates
     // and their bootstrap replicates hold it (free, it trades with a seal friction, whose
