@@ -7,8 +7,8 @@ as diagnose/tests/real_recordings.rs). Dyke: ransim_u.csv as it is.
 
     python3 scripts/diagnose-real.py [--bin target/release/mrtwin] [--selector calibrated]
 
-Prints a Markdown table: samples, held-out RMS baseline → final, findings with their first
-parameter, the number of unexplained entries, withdrawn effects, and the current knots the
+Prints a Markdown table: samples, held-out RMS baseline → final, findings with their
+parameters, the number of unexplained entries, withdrawn effects, and the current knots the
 record does not identify. Standard library only.
 """
 import argparse
@@ -45,7 +45,8 @@ def row(name, path, binary, selector, tmp):
     with open(js) as f:
         d = json.load(f)
     finds = ", ".join(
-        "%s (%s %.3g %s)" % (x["effect"], *next((k, p["value"], p["unit"]) for k, p in x["parameters"].items()))
+        "%s (%s)" % (x["effect"], ", ".join("%s %.3g %s" % (k, p["value"], p["unit"])
+                                            for k, p in x["parameters"].items()))
         for x in d["findings"]) or "—"
     withdrawn = ", ".join(w.split(":")[0] for w in d.get("withdrawn", [])) or "—"
     undecided = "; ".join(" or ".join(u["effects"]) for u in d.get("undecided", [])) or "—"
