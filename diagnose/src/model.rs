@@ -602,13 +602,14 @@ struct Chamber {
 }
 
 impl Chamber {
-    /// `1 + γ F`, at least [`STIFFENING_FLOOR`], and its derivative in F.
-    fn pressure_ratio(&self, f: f64) -> (f64, f64) {
+    /// `1 + γ F`, at least [`STIFFENING_FLOOR`], and its derivatives in F and in γ (both
+    /// 0 on the floor).
+    fn pressure_ratio(&self, f: f64) -> (f64, f64, f64) {
         let a = 1.0 + self.stiffening * f;
         if a > STIFFENING_FLOOR {
-            (a, self.stiffening)
+            (a, self.stiffening, f)
         } else {
-            (STIFFENING_FLOOR, 0.0)
+            (STIFFENING_FLOOR, 0.0, 0.0)
         }
     }
 
@@ -617,25 +618,12 @@ impl Chamber {
     /// and ∂E/∂F, ∂E/∂F₀, ∂E/∂C, ∂E/∂γ.
     fn charge(&self, f: f64, f0: f64) -> (f64, f64, f64, f64, f64) {
         let c = self.compliance;
-        let (a, da) = self.pressure_ratio(f);
-        let (a0, da0) = self.pressure_ratio(f0);
+        let (a, da, ga) = self.pressure_ratio(f);
+        let (a0, da0, ga0) = self.pressure_ratio(f0);
         let e = c * (f - f0) / (a * a0);
         let de_df = c / (a * a0) - e * da / a;
         let de_df0 = -c / (a * a0) - e * da0 / a0;
         let de_dc = (f - f0) / (a * a0);
-        // ∂a/∂γ = F (and F₀) where a is above its floor.
-        let (ga, ga0) = (
-            if da != 0.0 || self.stiffening == 0.0 {
-                f
-            } else {
-                0.0
-            },
-            if da0 != 0.0 || self.stiffening == 0.0 {
-                f0
-            } else {
-                0.0
-            },
-        );
         let de_dg = -e * (ga / a + ga0 / a0);
         (e, de_df, de_df0, de_dc, de_dg)
     }
@@ -1385,12 +1373,12 @@ mod tests {
         let (lo, hi): (f64, f64) = (2.0 / 3.0, 2.0 / 3.0 / 0.5);
         let want = 3.0 * ((20.0 * lo).powi(2) + (20.0 * (lo + hi)).powi(2));
         assert!((knot_penalty(&d, &lay, &theta) - want).abs() < 1e-6);
-        // Gradient and curvature against finite differences of the penalty.
         // The weights are per family.
         d.knot_smoothing = [3.0, 3.0, 0.0];
         assert!((knot_penalty(&d, &lay, &theta) - want).abs() < 1e-6);
         theta[lay.curvature_index() + 2] += 7.0;
         assert!((knot_penalty(&d, &lay, &theta) - want).abs() < 1e-6);
+        // Gradient and curvature against finite differences of the penalty.
         d.knot_smoothing = [3.0, 0.5, 2.0];
         let p = lay.len();
         let mut jtj = nalgebra::DMatrix::<f64>::zeros(p, p);

@@ -798,7 +798,7 @@ fn explanation(e: Effect, p: &BTreeMap<String, Parameter>) -> String {
             g("field_time_constant")
         ),
         Effect::FluidCompressibility => {
-            // γ in 1/kN; 1/γ is the static chamber pressure times its piston area.
+            // γ in 1/kN; 1/γ is the static chamber pressure times its annulus area.
             let gamma = g("pressure_stiffening");
             let stiffening = if gamma.is_finite() && gamma.abs() >= 1e-3 {
                 format!(
