@@ -262,6 +262,10 @@ pub struct MeasurementSummary {
     pub velocity_noise_m_s: Option<f64>,
     /// σ of the rebuilt velocity \[m/s\].
     pub rebuilt_velocity_sigma_m_s: f64,
+    /// The velocity error's scale κ against `rebuilt_velocity_sigma_m_s` that the force
+    /// channel shows near reversal (`crate::model::velocity_error_scale`; 1 before the
+    /// baseline is fitted): the sample weights take the velocity error as κ σ_v̂.
+    pub velocity_error_scale: f64,
     /// High-frequency (white) part of the force noise, from the force channel alone \[N\].
     pub force_noise_hf_n: f64,
     /// Whether the velocity column was derived from displacement by the reader.
@@ -493,6 +497,7 @@ pub fn measure(
         displacement_noise_m: sx,
         velocity_noise_m_s: sigma_v_raw.as_ref().map(|s| s.0),
         rebuilt_velocity_sigma_m_s: sigma_v_hat,
+        velocity_error_scale: 1.0,
         force_noise_hf_n: force_noise,
         velocity_derived,
         flat_stretches: flats.into_iter().map(|x| x.2).collect(),

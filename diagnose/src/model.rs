@@ -882,41 +882,112 @@ pub fn sse_train(d: &Prepared, force: &[f64]) -> f64 {
         .sum()
 }
 
-/// Sample weights from a baseline fit: `σ_F² / (σ_F² + Var_e[F(v̂ + e)])`, the second term
-/// the force variance the rebuilt velocity's error e ~ N(0, σ_v̂²) causes through the
-/// fitted law (large only where the sign of v is uncertain), σ_F the robust scale
-/// (1.4826 MAD) of the baseline's residual where that sign is certain (|v̂| > 4 σ_v̂).
-/// This makes the fit an errors-in-variables (weighted) least squares and every error
-/// figure noise-equivalent.
-pub fn predictive_weights(d: &Prepared, base: &Fit) -> Vec<f64> {
-    let lay = &base.layout;
-    let th = &base.theta;
-    let nk = lay.nk;
-    let leak = th[lay.leak_index()].max(0.0);
-    let leak_rel = th[lay.leak_rel_index()].max(0.0);
+/// The robust scale σ_F² of `base`'s residual where the sign of v is certain
+/// (|v̂| > 4 σ_v̂; 1.4826 MAD, squared), or `None` with fewer than 20 such samples.
+fn certain_sign_force_variance(d: &Prepared, base: &Fit) -> Option<f64> {
     let dev: Vec<f64> = (0..d.len())
         .filter(|&j| !d.excluded[j] && d.v[j].abs() > 4.0 * d.v_sigma[j])
         .map(|j| (d.f[j] - base.force[j]).abs())
         .collect();
     if dev.len() < 20 {
-        return vec![1.0; d.len()];
+        return None;
     }
     let sf = 1.4826 * crate::stats::median(dev);
-    let sf2 = (sf * sf).max(1e-12);
+    Some((sf * sf).max(1e-12))
+}
+
+/// `base`'s fluid law at sample j's current as a function of velocity: the leaky Bingham
+/// force of its interpolated F_y and c, without the anti-alias filter or other terms.
+fn fluid_law_at<'a>(d: &'a Prepared, base: &'a Fit) -> impl Fn(usize, f64) -> f64 + Sync + 'a {
+    let lay = &base.layout;
+    let th = &base.theta;
+    let nk = lay.nk;
+    let leak = th[lay.leak_index()].max(0.0);
+    let leak_rel = th[lay.leak_rel_index()].max(0.0);
+    move |j: usize, v: f64| {
+        let (k, lam, _) = knot_weights(&d.knots, d.i[j]);
+        let k2 = (k + 1).min(nk - 1);
+        let fy = ((1.0 - lam) * th[k] + lam * th[k2]).max(FY_MIN);
+        let c = ((1.0 - lam) * th[nk + k] + lam * th[nk + k2]).max(C_MIN);
+        bingham::force_leaky(v, fy, c, leak.hypot(leak_rel * fy / c)).0
+    }
+}
+
+/// Sample weights from a baseline fit: `σ_F² / (σ_F² + Var_e[F(v̂ + e)])`, the second term
+/// the force variance the rebuilt velocity's error e ~ N(0, (κ σ_v̂)²) causes through the
+/// fitted law (large only where the sign of v is uncertain), σ_F the robust scale
+/// (1.4826 MAD) of the baseline's residual where that sign is certain (|v̂| > 4 σ_v̂), κ
+/// from [`velocity_error_scale`]. This makes the fit an errors-in-variables (weighted)
+/// least squares and every error figure noise-equivalent.
+pub fn predictive_weights(d: &Prepared, base: &Fit, kappa: f64) -> Vec<f64> {
+    let Some(sf2) = certain_sign_force_variance(d, base) else {
+        return vec![1.0; d.len()];
+    };
+    let law = fluid_law_at(d, base);
     (0..d.len())
         .map(|j| {
-            let (k, lam, _) = knot_weights(&d.knots, d.i[j]);
-            let k2 = (k + 1).min(nk - 1);
-            let fy = ((1.0 - lam) * th[k] + lam * th[k2]).max(FY_MIN);
-            let c = ((1.0 - lam) * th[nk + k] + lam * th[nk + k2]).max(C_MIN);
             let var = crate::measure::variance_under_velocity_error(
-                |v| bingham::force_leaky(v, fy, c, leak.hypot(leak_rel * fy / c)).0,
+                |v| law(j, v),
                 d.v[j],
-                d.v_sigma[j],
+                kappa * d.v_sigma[j],
             );
             sf2 / (sf2 + var)
         })
         .collect()
+}
+
+/// Candidate scales κ of the velocity error (× σ_v̂), smallest first.
+pub const VELOCITY_ERROR_SCALES: [f64; 12] = [
+    1.0, 1.25, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 8.0, 11.0, 16.0,
+];
+
+/// The scale κ of the velocity error that the force channel shows, against σ_v̂: the
+/// maximum over [`VELOCITY_ERROR_SCALES`] of the Gaussian log-likelihood of the baseline's
+/// fitting residuals near reversal, `Σ_j −½ [ln s_j² + r_j²/s_j²]`,
+/// `s_j² = σ_F² + Var_e[F(v̂_j + e)]`, e ~ N(0, (κ σ_v̂,j)²) (a larger κ is taken only
+/// where it raises the log-likelihood by more than 2, an AIC step; samples with
+/// |v̂| < 6 κ_max σ_v̂, where some κ can matter).
+///
+/// σ_v̂ counts the channels' white noise only. Where the true velocity lingers near zero
+/// for longer than the smoothing window — a multisine's dwell, a slow reversal of a
+/// random stroke — the sign of v̂ is wrong more often than σ_v̂ says, and the force sits on
+/// the other branch, 2 F_y away, at samples weighted as certain (proving-ground null seed
+/// 57: residuals of 10–20 kN at weights 0.98). κ lets the record say how far its velocity
+/// can be trusted; 1 when it is as σ_v̂ says. An unmodelled effect at reversal (a lag of
+/// the force through compressibility, a presliding friction) also raises κ, which
+/// down-weights the samples it shows in: measured on the proving ground, more effects are
+/// found with it than without (BENCHMARKS.md, issue 10, nineteenth pass).
+pub fn velocity_error_scale(d: &Prepared, base: &Fit) -> f64 {
+    let Some(sf2) = certain_sign_force_variance(d, base) else {
+        return 1.0;
+    };
+    let law = fluid_law_at(d, base);
+    let kmax = VELOCITY_ERROR_SCALES[VELOCITY_ERROR_SCALES.len() - 1];
+    let near: Vec<usize> = (0..d.len())
+        .filter(|&j| d.train[j] && d.v[j].abs() < 6.0 * kmax * d.v_sigma[j])
+        .collect();
+    let loglik = |kappa: f64| -> f64 {
+        near.iter()
+            .map(|&j| {
+                let var = crate::measure::variance_under_velocity_error(
+                    |v| law(j, v),
+                    d.v[j],
+                    kappa * d.v_sigma[j],
+                );
+                let s2 = sf2 + var;
+                let r = d.f[j] - base.force[j];
+                -0.5 * (s2.ln() + r * r / s2)
+            })
+            .sum()
+    };
+    let mut best = (1.0, loglik(1.0));
+    for &k in &VELOCITY_ERROR_SCALES[1..] {
+        let l = loglik(k);
+        if l > best.1 + 2.0 {
+            best = (k, l);
+        }
+    }
+    best.0
 }
 
 /// Fit `theta` (start values) on the fitting part by Levenberg–Marquardt.
@@ -1336,6 +1407,94 @@ mod tests {
         ];
         let f0 = evaluate(d, &base, &th, false).force;
         (base, th, f0)
+    }
+
+    /// A 2 Hz, ±10 mm stroke sampled at 500 Hz, one current; displacement and velocity
+    /// channels with white noise (10 µm, 5 mm/s); the force from a Bingham law (F_y 500 N, c
+    /// 1000 N s/m) at the true velocity moved by a further error of `extra` × σ_v̂, plus
+    /// 5 N of noise. Returns the prepared record and the law's expected force at v̂ under
+    /// the measured velocity error, as the baseline would have it.
+    fn noisy_reversals(extra: f64, seed: u64) -> (Prepared, Fit) {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        let unit = Normal::new(0.0, 1.0).unwrap();
+        let w = 2.0 * std::f64::consts::PI * 2.0;
+        let mut s = Signals::default();
+        let mut v_true = Vec::new();
+        for k in 0..10_000 {
+            let t = k as f64 * 2e-3;
+            let v = 0.01 * w * (w * t).cos();
+            v_true.push(v);
+            s.time_s.push(t);
+            s.displacement_m
+                .push(0.01 * (w * t).sin() + 1e-5 * unit.sample(&mut rng));
+            s.velocity_m_s.push(v + 5e-3 * unit.sample(&mut rng));
+            s.current_a.push(0.5);
+            // Replaced below, once σ_v̂ is known; not flat, so no stretch is left out.
+            s.force_n
+                .push(500.0 * (v / 0.01).tanh() + 5.0 * unit.sample(&mut rng));
+        }
+        let mut d = prepare(&s).expect("valid record");
+        let (fy, c) = (500.0, 1000.0);
+        d.f = (0..d.len())
+            .map(|j| {
+                let v = v_true[j] + extra * d.v_sigma[j] * unit.sample(&mut rng);
+                bingham::force_leaky(v, fy, c, 0.0).0 + 5.0 * unit.sample(&mut rng)
+            })
+            .collect();
+        let layout = Layout {
+            nk: d.knots.len(),
+            effects: vec![],
+            soft: false,
+            friction_scale: FrictionScale::Constant,
+        };
+        assert_eq!(layout.nk, 1);
+        // No leak of its own: each sample's velocity error makes it ([`sample_leak`]).
+        let theta = vec![fy, c, 0.0, 0.0, 0.0, 0.0, 0.0];
+        let force = evaluate(&d, &layout, &theta, false).force;
+        let fit = Fit {
+            layout,
+            theta,
+            force,
+            se: vec![0.0; 7],
+            train_sse: 0.0,
+            train_n: 0,
+            rho1: 0.0,
+        };
+        (d, fit)
+    }
+
+    #[test]
+    fn the_velocity_error_scale_is_read_from_the_force_at_reversal() {
+        // The velocity channels' error is all there is: κ stays 1.
+        for seed in [1, 2, 3] {
+            let (d, base) = noisy_reversals(0.0, seed);
+            let k = velocity_error_scale(&d, &base);
+            assert_eq!(k, 1.0, "clean record, seed {seed}");
+        }
+        // The force was made at a velocity √(1 + 4²) ≈ 4.1 σ_v̂ from v̂: κ finds it, and
+        // the samples where the sign is then in doubt lose weight.
+        for seed in [1, 2, 3] {
+            let (d, base) = noisy_reversals(4.0, seed);
+            let k = velocity_error_scale(&d, &base);
+            assert!(
+                (3.0..=5.0).contains(&k),
+                "4 σ_v̂ hidden, seed {seed}: κ = {k}"
+            );
+            let w1 = predictive_weights(&d, &base, 1.0);
+            let wk = predictive_weights(&d, &base, k);
+            let near: Vec<usize> = (0..d.len())
+                .filter(|&j| d.v[j].abs() < 3.0 * k * d.v_sigma[j])
+                .collect();
+            let mean = |w: &[f64]| near.iter().map(|&j| w[j]).sum::<f64>() / near.len() as f64;
+            assert!(
+                mean(&wk) < 0.5 * mean(&w1),
+                "weights near reversal: {} with κ against {} without",
+                mean(&wk),
+                mean(&w1)
+            );
+        }
     }
 
     #[test]

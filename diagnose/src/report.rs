@@ -478,7 +478,7 @@ pub fn render_markdown(r: &Report) -> String {
     let _ = writeln!(
         s,
         "\n**Measurement.** Noise: displacement {:.2} µm, velocity {}, force (high-frequency) \
-         {:.2} N; rebuilt velocity σ {:.3} mm/s (window ±{} samples, stroke period {:.3} s); \
+         {:.2} N; rebuilt velocity σ {:.3} mm/s (window ±{} samples, stroke period {:.3} s){}; \
          {} samples at the ends of the record and its segments left out (one-sided \
          velocity).{}\n",
         1e6 * m.displacement_noise_m,
@@ -489,6 +489,15 @@ pub fn render_markdown(r: &Report) -> String {
         1e3 * m.rebuilt_velocity_sigma_m_s,
         m.window_half_samples,
         m.stroke_period_s,
+        if m.velocity_error_scale > 1.0 {
+            format!(
+                "; near reversal the force shows a velocity error {}× that σ, and the \
+                 samples are weighted for it",
+                m.velocity_error_scale
+            )
+        } else {
+            String::new()
+        },
         m.edge_samples,
         if m.flat_stretches.is_empty() {
             String::new()

@@ -1453,7 +1453,9 @@ pub fn diagnose_with_progress(
     let first = baseline_and_anti_alias(&mut d, &opts.base_effects);
     // Errors in variables: weight each sample by how predictable its force is under the
     // rebuilt velocity's error, then refit.
-    d.weight = crate::model::predictive_weights(&d, &first);
+    let kappa = crate::model::velocity_error_scale(&d, &first);
+    d.measurement.velocity_error_scale = kappa;
+    d.weight = crate::model::predictive_weights(&d, &first, kappa);
     d.knot_smoothing = crate::model::knot_smoothing(&d, &first);
     let mut base = fit(&d, &first.layout, &first.theta);
     // The yield softness is a property of the fluid the baseline has settled: candidates
