@@ -405,14 +405,16 @@ fn the_yield_estimators_sigma_against_the_independent_truth() {
 }
 
 /// A parameter interval widened by the spread between the record's halves (issue 13;
-/// docs/diagnose.md, Limits). Proving-ground seed 0 hides a 25.3 ms first-order field lag
-/// (with compressibility and a gas spring) under stepped currents: the lag fitted on the
-/// fitting blocks comes out 26.9 ms with ±1.4 ms of its own, which misses the generated
-/// value; refitted on the held-out blocks it differs by more than the two standard errors
-/// explain, and the widened interval holds it.
+/// docs/diagnose.md, Limits). Proving-ground seed 116 hides a 1.0 ms first-order field lag
+/// (with a gas spring): the lag fitted on the fitting blocks comes out 0.92 ms, its own
+/// interval 0.89–0.95 ms missing the generated value; refitted on the held-out blocks it
+/// differs by more than the two standard errors explain, and the widened interval
+/// (0.72–1.12 ms) holds it. (Seed 0 was this test's record until the nineteenth diagnose
+/// pass, whose velocity error scale brought its lag to 25.0 ms against 25.3 generated with
+/// halves that agree.)
 #[test]
 fn a_lag_whose_halves_disagree_gets_an_interval_that_holds_the_generated_value() {
-    let (m, d) = generate_and_diagnose(0);
+    let (m, d) = generate_and_diagnose(116);
     let lag = m["effects"]
         .as_array()
         .unwrap()
