@@ -551,6 +551,9 @@ fn segments(
 fn current_runs(t: &[f64], i: &[f64], h: &[f64], period: f64) -> (Vec<usize>, usize) {
     let tol = level_tolerance(i);
     let n = i.len();
+    // Half a stroke period, but no longer than a sixteenth of the record: a record of a
+    // few slow strokes (3.7 s period in 4 s) still has runs of its held levels.
+    let shortest = (t[n - 1] - t[0]) / 16.0;
     let mut starts = vec![0usize];
     for k in 1..n {
         if h[k] == 0.0 || (i[k] - i[k - 1]).abs() > tol {
@@ -562,7 +565,7 @@ fn current_runs(t: &[f64], i: &[f64], h: &[f64], period: f64) -> (Vec<usize>, us
     for w in starts.windows(2) {
         let (a, b) = (w[0], w[1]);
         let gap_before = a > 0 && h[a] == 0.0;
-        if kept.is_empty() || gap_before || t[b - 1] - t[a] >= 0.5 * period {
+        if kept.is_empty() || gap_before || t[b - 1] - t[a] >= (0.5 * period).min(shortest) {
             kept.push(a);
         }
     }
@@ -746,7 +749,57 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
         let step_at: Vec<usize> = (1..n).filter(|&j| run[j] != run[j - 1]).collect();
         let one_sided =
             |b: &[usize]| -> bool { step_at.len() >= 2 && step_at.iter().all(|&j| b[j] % 2 == 1) };
-        if !few_long_parts(&t, &segment, segments, period)
+        // A record of a few slow strokes (a 4 s random record with a 3.7 s stroke period)
+        // is cut into four blocks, and a held level may then have a quarter of its
+        // samples in the fitting blocks, one stroke direction or speed: predicted from
+        // that, its held-out blocks were 10–17 σ_F off (seeds 166, 190). When every level
+        // has less than a third of its samples fitted, a few runs of one current, each
+        // at least an eighth of the record, are cut in half instead.
+        let tol = level_tolerance(&i);
+        let worst_share = |b: &[usize]| -> f64 {
+            knots
+                .iter()
+                .filter_map(|&k| {
+                    let at: Vec<usize> = (0..n).filter(|&j| (i[j] - k).abs() <= tol).collect();
+                    let fit = at.iter().filter(|&&j| b[j] % 2 == 0).count();
+                    (!at.is_empty()).then(|| fit as f64 / at.len() as f64)
+                })
+                .fold(1.0, f64::min)
+        };
+        let runs_long = runs <= 8
+            && part_ranges(&run, runs)
+                .iter()
+                .all(|&(a, b)| a < b && t[b - 1] - t[a] >= (t[n - 1] - t[0]) / 8.0);
+        let halves = (!few_long_parts(&t, &segment, segments, period)
+            && !few_long_parts(&t, &run, runs, period)
+            && runs_long
+            && worst_share(&by_segment.0) < 1.0 / 3.0)
+            .then(|| {
+                let mut b = vec![0usize; n];
+                for (r, &(a, e)) in part_ranges(&run, runs).iter().enumerate() {
+                    let mid = 0.5 * (t[a] + t[e - 1]);
+                    for j in a..e {
+                        b[j] = 2 * r + usize::from(t[j] >= mid);
+                    }
+                }
+                b
+            })
+            .filter(|b| {
+                worst_share(b) > worst_share(&by_segment.0) + 0.1
+                    && unseen(b) <= unseen(&by_segment.0)
+            });
+        if let Some(b) = halves {
+            (
+                b,
+                2 * runs,
+                format!(
+                    "{} blocks: each of the {runs} runs of one held current cut in two, the \
+                     first half fitted and the second held out (equal blocks left a level with \
+                     under a third of its samples fitted)",
+                    2 * runs
+                ),
+            )
+        } else if !few_long_parts(&t, &segment, segments, period)
             && few_long_parts(&t, &run, runs, period)
             && unseen(&by_segment.0) > 0
         {
@@ -1022,6 +1075,36 @@ mod tests {
             d.split_method
         );
         assert_eq!(d.knots, vec![0.0, 1.0, 1.5], "every level still fitted");
+    }
+
+    #[test]
+    fn a_slow_record_cuts_each_held_level_in_two() {
+        // Proving-ground seed 166's pattern: 4 s holding 1.1, 0.55 and 0 A for 1.33 s each
+        // under one slow stroke (3.7 s period). Four equal blocks leave the last level with
+        // a quarter of its samples fitted; each level's run is cut in two instead.
+        let mut s = Signals::default();
+        let w = 2.0 * std::f64::consts::PI / 3.7;
+        for k in 0..4000 {
+            let t = k as f64 * 1e-3;
+            let i = [1.1, 0.55, 0.0][((t / (4.0 / 3.0)) as usize).min(2)];
+            let v = 0.01 * w * (w * t).cos();
+            s.time_s.push(t);
+            s.displacement_m.push(0.01 * (w * t).sin());
+            s.velocity_m_s.push(v);
+            s.current_a.push(i);
+            s.force_n
+                .push((200.0 + 800.0 * i) * (v / 0.002).tanh() + 500.0 * v);
+        }
+        let d = prepare(&s).unwrap();
+        assert!(d.split_method.contains("cut in two"), "{}", d.split_method);
+        assert_eq!(d.knots.len(), 3, "every level still fitted: {:?}", d.knots);
+        for level in [0.0, 0.55, 1.1] {
+            let at: Vec<usize> = (0..d.len()).filter(|&j| d.i[j] == level).collect();
+            let fit = at.iter().filter(|&&j| d.train[j]).count() as f64;
+            let held = at.iter().filter(|&&j| d.holdout[j]).count() as f64;
+            let share = fit / (fit + held);
+            assert!((0.4..=0.6).contains(&share), "{level} A: {share:.2} fitted");
+        }
     }
 
     #[test]
