@@ -78,6 +78,10 @@ pub fn paired_z(before: &[f64], after: &[f64]) -> (f64, f64) {
         m,
         if se > 0.0 {
             m / se
+        } else if m == 0.0 {
+            // Identical predictions (a candidate whose parameter stayed at its no-effect
+            // value): no difference, not 0/0.
+            0.0
         } else {
             f64::INFINITY * m.signum()
         },
@@ -87,6 +91,14 @@ pub fn paired_z(before: &[f64], after: &[f64]) -> (f64, f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn identical_predictions_have_a_paired_z_of_zero() {
+        let sse = [3.0, 1.0, 4.0, 1.5];
+        assert_eq!(paired_z(&sse, &sse), (0.0, 0.0));
+        let better: Vec<f64> = sse.iter().map(|x| x - 0.5).collect();
+        assert_eq!(paired_z(&sse, &better).1, f64::INFINITY);
+    }
 
     #[test]
     fn quantiles_match_tables() {
