@@ -1038,24 +1038,31 @@ mod tests {
         assert_eq!((run[999], run[1002], run[1500], run[2500]), (0, 0, 1, 2));
     }
 
-    #[test]
-    fn a_current_step_is_left_in_the_fitting_blocks() {
-        // Proving-ground seed 253's pattern: 4 s at 6 Hz, the current stepping 0 → 1 →
-        // 1.5 A every 0.97 s. Eight equal blocks (three stroke periods each) put all four
-        // steps in held-out blocks, where a field lag could be tested but never fitted.
+    /// 4 s at 1 kHz of a ±10 mm sine at `freq` Hz, the current `current(t)`, and a
+    /// Bingham-like force smoothed over `v_smooth` m/s.
+    fn sine_with_current(freq: f64, v_smooth: f64, current: impl Fn(f64) -> f64) -> Signals {
         let mut s = Signals::default();
-        let w = 2.0 * std::f64::consts::PI * 6.0;
+        let w = 2.0 * std::f64::consts::PI * freq;
         for k in 0..4000 {
             let t = k as f64 * 1e-3;
-            let i = [0.0, 1.0, 1.5][((t / 0.97) as usize) % 3];
+            let i = current(t);
             let v = 0.01 * w * (w * t).cos();
             s.time_s.push(t);
             s.displacement_m.push(0.01 * (w * t).sin());
             s.velocity_m_s.push(v);
             s.current_a.push(i);
             s.force_n
-                .push((200.0 + 800.0 * i) * (v / 0.01).tanh() + 500.0 * v);
+                .push((200.0 + 800.0 * i) * (v / v_smooth).tanh() + 500.0 * v);
         }
+        s
+    }
+
+    #[test]
+    fn a_current_step_is_left_in_the_fitting_blocks() {
+        // Proving-ground seed 253's pattern: 4 s at 6 Hz, the current stepping 0 → 1 →
+        // 1.5 A every 0.97 s. Eight equal blocks (three stroke periods each) put all four
+        // steps in held-out blocks, where a field lag could be tested but never fitted.
+        let s = sine_with_current(6.0, 0.01, |t| [0.0, 1.0, 1.5][((t / 0.97) as usize) % 3]);
         let steps_at: Vec<usize> = (1..4000)
             .filter(|&j| s.current_a[j] != s.current_a[j - 1])
             .collect();
@@ -1082,19 +1089,9 @@ mod tests {
         // Proving-ground seed 166's pattern: 4 s holding 1.1, 0.55 and 0 A for 1.33 s each
         // under one slow stroke (3.7 s period). Four equal blocks leave the last level with
         // a quarter of its samples fitted; each level's run is cut in two instead.
-        let mut s = Signals::default();
-        let w = 2.0 * std::f64::consts::PI / 3.7;
-        for k in 0..4000 {
-            let t = k as f64 * 1e-3;
-            let i = [1.1, 0.55, 0.0][((t / (4.0 / 3.0)) as usize).min(2)];
-            let v = 0.01 * w * (w * t).cos();
-            s.time_s.push(t);
-            s.displacement_m.push(0.01 * (w * t).sin());
-            s.velocity_m_s.push(v);
-            s.current_a.push(i);
-            s.force_n
-                .push((200.0 + 800.0 * i) * (v / 0.002).tanh() + 500.0 * v);
-        }
+        let s = sine_with_current(1.0 / 3.7, 0.002, |t| {
+            [1.1, 0.55, 0.0][((t / (4.0 / 3.0)) as usize).min(2)]
+        });
         let d = prepare(&s).unwrap();
         assert!(d.split_method.contains("cut in two"), "{}", d.split_method);
         assert_eq!(d.knots.len(), 3, "every level still fitted: {:?}", d.knots);
