@@ -752,9 +752,10 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
         // A record of a few slow strokes (a 4 s random record with a 3.7 s stroke period)
         // is cut into four blocks, and a held level may then have a quarter of its
         // samples in the fitting blocks, one stroke direction or speed: predicted from
-        // that, its held-out blocks were 10–17 σ_F off (seeds 166, 190). When every level
-        // has less than a third of its samples fitted, a few runs of one current, each
-        // at least an eighth of the record, are cut in half instead.
+        // that, its held-out blocks were 10–17 σ_F off (seeds 166, 190). When some level
+        // has less than a third of its samples fitted, a few runs of one current (at most
+        // 8, each at least an eighth of the record) are cut in half instead, if that fits
+        // the worst level's share better by 0.1 and leaves no more levels unfitted.
         let tol = level_tolerance(&i);
         let worst_share = |b: &[usize]| -> f64 {
             knots
