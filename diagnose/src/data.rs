@@ -633,43 +633,51 @@ fn validation_blocks(
         k - k % 2
     };
     let per_segment = few_long_parts(t, segment, segments, period);
-    let mut block = vec![0usize; n];
-    let mut next = 0usize;
+    let (block, next);
     let method;
     if per_segment {
         let most = (MAX_BLOCKS / segments).max(2);
-        for &(a, b) in &seg_range {
-            let k = even_count(dur(a, b), most);
-            let (t0, len) = (t[a], dur(a, b).max(1e-12));
-            for j in a..b {
-                block[j] = next + (((t[j] - t0) / len * k as f64) as usize).min(k - 1);
-            }
-            next += k;
-        }
+        (block, next) = blocks_within_parts(t, &seg_range, |a, b| even_count(dur(a, b), most));
         method = format!(
             "contiguous blocks within each of the {segments} {what} (each cut into an even \
              number of blocks of at least three stroke periods); even blocks fit, odd blocks \
              held out, so every part's current and frequency is in both"
         );
     } else {
-        let k = even_count(dur(0, n), MAX_BLOCKS);
-        block = equal_blocks(t, k);
-        next = k;
+        next = even_count(dur(0, n), MAX_BLOCKS);
+        block = equal_blocks(t, next);
         method = format!(
-            "{k} contiguous blocks of equal time (at least three stroke periods each); even \
-             blocks fit, odd blocks held out"
+            "{next} contiguous blocks of equal time (at least three stroke periods each); \
+             even blocks fit, odd blocks held out"
         );
     }
     (block, next, method)
 }
 
+/// Each part (a sample range `(a, b)`) cut into `blocks(a, b)` contiguous blocks of equal
+/// time, numbered on from part to part. Returns the block of each sample (0 outside the
+/// parts) and the number of blocks.
+fn blocks_within_parts(
+    t: &[f64],
+    parts: &[(usize, usize)],
+    blocks: impl Fn(usize, usize) -> usize,
+) -> (Vec<usize>, usize) {
+    let mut block = vec![0usize; t.len()];
+    let mut next = 0usize;
+    for &(a, b) in parts {
+        let k = blocks(a, b);
+        let (t0, len) = (t[a], (t[b - 1] - t[a]).max(1e-12));
+        for j in a..b {
+            block[j] = next + (((t[j] - t0) / len * k as f64) as usize).min(k - 1);
+        }
+        next += k;
+    }
+    (block, next)
+}
+
 /// `k` contiguous blocks of equal time over the record (block of each sample).
 fn equal_blocks(t: &[f64], k: usize) -> Vec<usize> {
-    let n = t.len();
-    let (t0, len) = (t[0], (t[n - 1] - t[0]).max(1e-12));
-    t.iter()
-        .map(|&tj| (((tj - t0) / len * k as f64) as usize).min(k - 1))
-        .collect()
+    blocks_within_parts(t, &[(0, t.len())], |_, _| k).0
 }
 
 /// Check and prepare the signals: validate, apply the measurement model, find strokes,
@@ -767,24 +775,16 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
                 })
                 .fold(1.0, f64::min)
         };
+        let run_range = part_ranges(&run, runs);
         let runs_long = runs <= 8
-            && part_ranges(&run, runs)
+            && run_range
                 .iter()
                 .all(|&(a, b)| a < b && t[b - 1] - t[a] >= (t[n - 1] - t[0]) / 8.0);
         let halves = (!few_long_parts(&t, &segment, segments, period)
             && !few_long_parts(&t, &run, runs, period)
             && runs_long
             && worst_share(&by_segment.0) < 1.0 / 3.0)
-            .then(|| {
-                let mut b = vec![0usize; n];
-                for (r, &(a, e)) in part_ranges(&run, runs).iter().enumerate() {
-                    let mid = 0.5 * (t[a] + t[e - 1]);
-                    for j in a..e {
-                        b[j] = 2 * r + usize::from(t[j] >= mid);
-                    }
-                }
-                b
-            })
+            .then(|| blocks_within_parts(&t, &run_range, |_, _| 2).0)
             .filter(|b| {
                 worst_share(b) > worst_share(&by_segment.0) + 0.1
                     && unseen(b) <= unseen(&by_segment.0)
