@@ -247,6 +247,28 @@ fn current_steps_and_noise_are_modelled_and_no_lag_is_made_of_them() {
 }
 
 /// A fitted parameter of a finding: its value and 95 % interval.
+/// The effects a scenario's meta JSON hides, sorted.
+fn hidden_effects(meta: &serde_json::Value) -> Vec<&str> {
+    sorted_strings(meta["hidden"].as_array().unwrap().iter())
+}
+
+/// The effects a diagnosis found, sorted.
+fn found_effects(diagnosis: &serde_json::Value) -> Vec<&str> {
+    sorted_strings(
+        diagnosis["findings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|f| &f["effect"]),
+    )
+}
+
+fn sorted_strings<'a>(values: impl Iterator<Item = &'a serde_json::Value>) -> Vec<&'a str> {
+    let mut v: Vec<&str> = values.map(|x| x.as_str().unwrap()).collect();
+    v.sort();
+    v
+}
+
 fn finding_parameter(d: &serde_json::Value, effect: &str, name: &str) -> (f64, [f64; 2]) {
     let f = d["findings"]
         .as_array()
@@ -271,26 +293,13 @@ fn finding_parameter(d: &serde_json::Value, effect: &str, name: &str) -> (f64, [
 #[test]
 fn a_gas_spring_and_a_mass_that_cancel_alone_are_found_as_a_pair() {
     let (m, d) = generate_and_diagnose(141);
-    let mut hidden: Vec<&str> = m["hidden"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_str().unwrap())
-        .collect();
-    hidden.sort();
+    let hidden = hidden_effects(&m);
     assert_eq!(
         hidden,
         ["field_lag", "fluid_inertia", "gas_spring"],
         "the scenario changed"
     );
-    let mut found: Vec<&str> = d["findings"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|f| f["effect"].as_str().unwrap())
-        .collect();
-    found.sort();
-    assert_eq!(found, hidden, "findings {}", d["findings"]);
+    assert_eq!(found_effects(&d), hidden, "findings {}", d["findings"]);
     let pair_accepted = d["trials"]
         .as_array()
         .unwrap()
@@ -461,13 +470,7 @@ fn a_lag_whose_halves_disagree_gets_an_interval_that_holds_the_generated_value()
 #[test]
 fn a_field_lag_is_fitted_on_current_steps_the_split_keeps_in_the_fitting_blocks() {
     let (m, d) = generate_and_diagnose(253);
-    let hidden: Vec<&str> = m["hidden"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|h| h.as_str().unwrap())
-        .collect();
-    assert_eq!(hidden, ["field_lag"], "the scenario changed");
+    assert_eq!(hidden_effects(&m), ["field_lag"], "the scenario changed");
     assert_eq!(
         m["excitation"]["current"]["mode"], "stepped",
         "the scenario changed"
@@ -477,13 +480,7 @@ fn a_field_lag_is_fitted_on_current_steps_the_split_keeps_in_the_fitting_blocks(
         method.contains("current step in the fitting blocks"),
         "split: {method}"
     );
-    let found: Vec<&str> = d["findings"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|f| f["effect"].as_str().unwrap())
-        .collect();
-    assert_eq!(found, ["field_lag"], "split: {method}");
+    assert_eq!(found_effects(&d), ["field_lag"], "split: {method}");
     let truth_ms = m["effects"][0]["parameters"]["effective_tau_s"]
         .as_f64()
         .unwrap()

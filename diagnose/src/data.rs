@@ -953,21 +953,43 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn sine(n: usize) -> Signals {
+    /// `n` samples `dt` apart of a sinusoidal stroke of amplitude `amp` at `freq(t)` Hz
+    /// (exact velocity), the current `current(t)` and the force `force(t, v, i)`.
+    pub(crate) fn sine_record(
+        n: usize,
+        dt: f64,
+        amp: f64,
+        freq: impl Fn(f64) -> f64,
+        current: impl Fn(f64) -> f64,
+        force: impl Fn(f64, f64, f64) -> f64,
+    ) -> Signals {
         let mut s = Signals::default();
         for k in 0..n {
-            let t = k as f64 * 0.001;
-            let w = 2.0 * std::f64::consts::PI * 3.0;
+            let t = k as f64 * dt;
+            let w = 2.0 * std::f64::consts::PI * freq(t);
+            let (v, i) = (amp * w * (w * t).cos(), current(t));
             s.time_s.push(t);
-            s.displacement_m.push(0.01 * (w * t).sin());
-            s.velocity_m_s.push(0.01 * w * (w * t).cos());
-            s.force_n.push(100.0 * (w * t).cos());
-            s.current_a.push(if t < 1.0 { 0.0 } else { 1.0 });
+            s.displacement_m.push(amp * (w * t).sin());
+            s.velocity_m_s.push(v);
+            s.current_a.push(i);
+            s.force_n.push(force(t, v, i));
         }
         s
+    }
+
+    fn sine(n: usize) -> Signals {
+        let w = 2.0 * std::f64::consts::PI * 3.0;
+        sine_record(
+            n,
+            0.001,
+            0.01,
+            |_| 3.0,
+            |t| if t < 1.0 { 0.0 } else { 1.0 },
+            |t, _, _| 100.0 * (w * t).cos(),
+        )
     }
 
     #[test]
@@ -1042,20 +1064,14 @@ mod tests {
     /// 4 s at 1 kHz of a ±10 mm sine at `freq` Hz, the current `current(t)`, and a
     /// Bingham-like force smoothed over `v_smooth` m/s.
     fn sine_with_current(freq: f64, v_smooth: f64, current: impl Fn(f64) -> f64) -> Signals {
-        let mut s = Signals::default();
-        let w = 2.0 * std::f64::consts::PI * freq;
-        for k in 0..4000 {
-            let t = k as f64 * 1e-3;
-            let i = current(t);
-            let v = 0.01 * w * (w * t).cos();
-            s.time_s.push(t);
-            s.displacement_m.push(0.01 * (w * t).sin());
-            s.velocity_m_s.push(v);
-            s.current_a.push(i);
-            s.force_n
-                .push((200.0 + 800.0 * i) * (v / v_smooth).tanh() + 500.0 * v);
-        }
-        s
+        sine_record(
+            4000,
+            1e-3,
+            0.01,
+            |_| freq,
+            current,
+            |_, v, i| (200.0 + 800.0 * i) * (v / v_smooth).tanh() + 500.0 * v,
+        )
     }
 
     #[test]

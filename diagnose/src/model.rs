@@ -1376,20 +1376,14 @@ mod tests {
 
     /// A short synthetic record: two frequencies, current steps, smooth noise-free force.
     fn record() -> Prepared {
-        let mut s = Signals::default();
-        for k in 0..3000 {
-            let t = k as f64 * 0.002;
-            let f = if t < 3.0 { 2.0 } else { 4.0 };
-            let w = 2.0 * std::f64::consts::PI * f;
-            let i = [0.0, 0.5, 1.0][((t / 0.55) as usize) % 3];
-            let v = 0.008 * w * (w * t).cos();
-            s.time_s.push(t);
-            s.displacement_m.push(0.008 * (w * t).sin());
-            s.velocity_m_s.push(v);
-            s.current_a.push(i);
-            s.force_n
-                .push((300.0 + 900.0 * i) * (v / 0.02).tanh() + 800.0 * v);
-        }
+        let s = crate::data::tests::sine_record(
+            3000,
+            0.002,
+            0.008,
+            |t| if t < 3.0 { 2.0 } else { 4.0 },
+            |t| [0.0, 0.5, 1.0][((t / 0.55) as usize) % 3],
+            |_, v, i| (300.0 + 900.0 * i) * (v / 0.02).tanh() + 800.0 * v,
+        );
         prepare(&s).expect("valid record")
     }
 
