@@ -14,14 +14,16 @@ use launch_config::load_params;
 use node::conditioning::{ConditioningConfig, SensorSample};
 use node::config::{EstimatorSection, TwinNodeParams, STAND_NODE, TWIN_NODE};
 use node::fit::{
-    alternate_blocks, current_levels, fit, free_parameters, predict, rms_residual, FitOutcome,
-    FitProblem,
+    alternate_blocks, current_levels, fit_or_unidentified, free_parameters, predict, rms_residual,
+    FitError, FitOutcome, FitProblem, ParamKey, Unidentified,
 };
 use node::pipeline::PipelineConfig;
 use numerics::least_squares::LmStop;
 use serde::Serialize;
 use serde_json::json;
-use twin::models::{BinghamParams, FluidLaw, ModelKind, ModelParams, TwoChamberParams};
+use twin::models::{
+    BinghamParams, FluidLaw, ModelKind, ModelParams, SpencerParams, TwoChamberParams,
+};
 use twin::EffectSet;
 
 /// Arguments of `mrtwin fit`.
@@ -30,7 +32,7 @@ pub struct FitArgs {
     /// Recordings (CSV in the PHYSICS.md format, rosbag2 directories or .mcap files).
     #[arg(required = true, value_name = "RECORDING")]
     pub recordings: Vec<PathBuf>,
-    /// Model to fit: `two-chamber` or `bingham` (default: the one of `--params`, else
+    /// Model to fit: `two-chamber`, `bingham` or `spencer` (default: the one of `--params`, else
     /// two-chamber).
     #[arg(long, value_name = "NAME")]
     pub model: Option<String>,
@@ -68,6 +70,9 @@ pub struct TwinSection<'a> {
     /// `bingham` parameters (model `bingham`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub bingham: Option<&'a BinghamParams>,
+    /// `spencer` parameters (model `spencer`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub spencer: Option<&'a SpencerParams>,
     /// `two_chamber` parameters (model `two-chamber`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub two_chamber: Option<&'a TwoChamberParams>,
@@ -99,6 +104,7 @@ impl<'a> TwinSection<'a> {
             model,
             effects: effects.to_string(),
             bingham: (model == ModelKind::Bingham).then_some(&params.bingham),
+            spencer: (model == ModelKind::Spencer).then_some(&params.spencer),
             two_chamber: (model == ModelKind::TwoChamber).then_some(&params.two_chamber),
             conditioning: (*conditioning != ConditioningConfig::default()).then_some(conditioning),
             estimator: (estimator != EstimatorSection::default()).then_some(estimator),
@@ -221,11 +227,12 @@ pub fn calibrate(
     let mask = alternate_blocks(records, blocks);
     let split_problem = FitProblem {
         config: config.clone(),
-        keys: keys.clone(),
+        keys,
         records,
         mask: mask.clone(),
     };
-    let split = fit(&split_problem).context("fit on the even blocks")?;
+    let (split, keys) =
+        fit_holding_unidentified(split_problem, &mut notes).context("fit on the even blocks")?;
     if split.stop == LmStop::MaxIterations {
         bail!(
             "the fit did not converge in {} iterations (RMS {:.4} N): the model does not \
@@ -255,7 +262,8 @@ pub fn calibrate(
         records,
         mask: records.iter().map(|r| vec![true; r.len()]).collect(),
     };
-    let full = fit(&full_problem).context("fit on all samples")?;
+    let (full, _) =
+        fit_holding_unidentified(full_problem, &mut notes).context("fit on all samples")?;
     if full.stop == LmStop::MaxIterations {
         bail!(
             "the fit on all samples did not converge in {} iterations",
@@ -270,6 +278,50 @@ pub fn calibrate(
         full,
         notes,
     })
+}
+
+/// [`fit`], and for a spencer twin, whose modified Bouc–Wen law has more parameters than a
+/// record usually pins down (k0, k1 and x0 on a short stroke; β beside γ; η on held
+/// currents), each parameter the records cannot tell apart from the others is held at its
+/// base value in turn (the one with the largest share of the weakest direction), said in
+/// `notes`, and the fit repeated. Other models refuse by name, as their free parameters
+/// are already the combinations a record identifies. Returns the fit and the keys it moved.
+fn fit_holding_unidentified(
+    mut problem: FitProblem<'_>,
+    notes: &mut Vec<String>,
+) -> Result<(FitOutcome, Vec<ParamKey>), FitError> {
+    loop {
+        match fit_or_unidentified(&problem)? {
+            Ok(out) => return Ok((out, problem.keys)),
+            Err(Unidentified {
+                keys: weak,
+                optimum,
+            }) if problem.config.model == ModelKind::Spencer && problem.keys.len() > 1 => {
+                let held = weak[0];
+                // The others start again where the iterations left them (a positive one
+                // driven to zero from its base value).
+                let base = problem.config.clone();
+                problem.config = optimum;
+                for k in &problem.keys {
+                    let v = k.get(&problem.config);
+                    if *k == held || !(v.is_finite() && (v > 0.0 || !k.positive())) {
+                        k.set(&mut problem.config, k.get(&base));
+                    }
+                }
+                let others: Vec<String> = weak[1..].iter().map(|k| k.key()).collect();
+                notes.push(if others.is_empty() {
+                    format!("{held} held at its base value: the records barely move it")
+                } else {
+                    format!(
+                        "{held} held at its base value: the records cannot tell it apart from {}",
+                        others.join(", ")
+                    )
+                });
+                problem.keys.retain(|k| *k != held);
+            }
+            Err(u) => return Err(FitError::NotIdentifiable(u.keys)),
+        }
+    }
 }
 
 /// Where the fit starts a pre-yield leak it tries (λ, the inverse viscosity ratio of a

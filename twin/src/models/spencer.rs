@@ -1,7 +1,8 @@
 //! Spencer's modified Bouc–Wen model (Spencer, Dyke, Sain & Carlson, J. Eng. Mech.
 //! 123(3), 1997), eqs. (9)–(14) of that paper, in SI units:
 //!
-//! * F = c1 ẏ + k1 (x − x0)
+//! * F = c1 ẏ + k1 (x − x0) + F_off, with F_off the load cell's zero (not in the paper; 0
+//!   by default)
 //! * ż = −γ |ẋ − ẏ| z |z|^(n−1) − β (ẋ − ẏ) |z|^n + A (ẋ − ẏ)
 //! * ẏ = [α z + c0 ẋ + k0 (x − y)] / (c0 + c1)
 //! * α = αa + αb u, c1 = c1a + c1b u, c0 = c0a + c0b u
@@ -36,6 +37,9 @@ pub struct SpencerParams {
     pub k1: f64,
     /// x0 \[m\] (accumulator initial displacement).
     pub x0: f64,
+    /// F_off \[N\]: the load cell's zero, added to the force (not in the paper; with k1,
+    /// x0 gives an offset too, which `mrtwin fit` holds and fits this one instead).
+    pub load_cell_offset_n: f64,
     /// αa \[N/m\].
     pub alpha_a: f64,
     /// αb \[N/(m·V)\].
@@ -66,6 +70,7 @@ impl Default for SpencerParams {
             c1b: 2950.0,
             k1: 500.0,
             x0: 0.143,
+            load_cell_offset_n: 0.0,
             alpha_a: 14_000.0,
             alpha_b: 69_500.0,
             gamma: 3.63e6,
@@ -153,7 +158,10 @@ impl Spencer {
         };
         let yd = sys.rhs(0.0, &Vector::<2>::new(self.y, self.z)).0[0];
         let c1 = p.c1a + p.c1b * self.u;
-        (yd, c1 * yd + p.k1 * (inp.displacement_m - p.x0))
+        (
+            yd,
+            c1 * yd + p.k1 * (inp.displacement_m - p.x0) + p.load_cell_offset_n,
+        )
     }
 
     /// Dissipated power: force minus the conservative spring k1 (x − x0) and k0, times the
