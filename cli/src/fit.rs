@@ -312,16 +312,19 @@ fn fit_holding_unidentified(
                 if held.positive() && held.get(&problem.config) < 1e-9 * held.get(&start).abs() {
                     held.set(&mut problem.config, 0.0);
                 }
-                let value = held.get(&problem.config);
+                let value = match held.get(&problem.config) {
+                    0.0 => "0".to_string(),
+                    v => format!("{v:.6e}"),
+                };
                 let others: Vec<String> = weak[1..].iter().map(|k| k.key()).collect();
                 notes.push(if others.is_empty() {
                     format!(
-                        "{held} held at {value:.6e}, where the iterations left it: the records \
+                        "{held} held at {value}, where the iterations left it: the records \
                          barely move it (no interval)"
                     )
                 } else {
                     format!(
-                        "{held} held at {value:.6e}, where the iterations left it: the records \
+                        "{held} held at {value}, where the iterations left it: the records \
                          cannot tell it apart from {} (no interval)",
                         others.join(", ")
                     )

@@ -13,7 +13,10 @@
 //! geometry (as many polynomial coefficients as the record has current levels, at most
 //! three); a chamber compliance through K at the base chamber volumes; the gas stiffness
 //! through its volume (its preload is one offset with the load cell's zero, so p0 is
-//! held); each other effect by its one parameter.
+//! held); each other effect by its one parameter. For Spencer's Bouc–Wen twin, the
+//! parameters of [`SpencerKey`] (A, n, x0 and the command gain held); those a record still
+//! cannot tell apart are reported by [`fit_or_unidentified`] with the optimum reached, so
+//! that the caller can hold them there and fit again.
 
 use std::fmt;
 
@@ -71,9 +74,10 @@ pub enum ParamKey {
 }
 
 /// The fitted parameters of Spencer's modified Bouc–Wen model (`twin::models::spencer`,
-/// Spencer et al. 1997, eqs. (9)–(14)). A, n and the command gain are held: z can be
+/// Spencer et al. 1997, eqs. (9)–(14)). A, n, x0 and the command gain are held: z can be
 /// rescaled with A, γ, β and α together without changing the force, n is fixed at the
-/// paper's 2, and the gain only rescales the laws in u.
+/// paper's 2, −k1·x0 is one offset with the load cell's zero (fitted as that), and the
+/// gain only rescales the laws in u.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SpencerKey {
     /// c0a \[N·s/m\].
