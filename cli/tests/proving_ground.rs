@@ -246,7 +246,6 @@ fn current_steps_and_noise_are_modelled_and_no_lag_is_made_of_them() {
     }
 }
 
-/// A fitted parameter of a finding: its value and 95 % interval.
 /// The effects a scenario's meta JSON hides, sorted.
 fn hidden_effects(meta: &serde_json::Value) -> Vec<&str> {
     sorted_strings(meta["hidden"].as_array().unwrap().iter())
@@ -269,6 +268,7 @@ fn sorted_strings<'a>(values: impl Iterator<Item = &'a serde_json::Value>) -> Ve
     v
 }
 
+/// A fitted parameter of a finding: its value and 95 % interval.
 fn finding_parameter(d: &serde_json::Value, effect: &str, name: &str) -> (f64, [f64; 2]) {
     let f = d["findings"]
         .as_array()

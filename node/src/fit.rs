@@ -266,7 +266,8 @@ impl fmt::Display for ParamKey {
 /// choice means (the notes go into the fit's report). `current_levels` is the number of
 /// distinct current levels in the records (a continuously varying current counts as
 /// many). When the recording's current column is a command voltage, the driver's lag is
-/// fitted too (from [`DRIVER_LAG_START_S`] when the base gives none).
+/// fitted too (from [`DRIVER_LAG_START_S`] when the base gives none), except for spencer,
+/// whose command filter η is that lag.
 pub fn free_parameters(
     cfg: &PipelineConfig,
     current_levels: usize,
@@ -373,27 +374,27 @@ pub fn free_parameters(
         }
         other => return Err(FitError::UnsupportedModel(other)),
     }
-    if cfg.conditioning.current_channel == CurrentChannel::CommandVoltage
-        && model == ModelKind::Spencer
-    {
-        notes.push(
-            "conditioning.driver_lag_s: the current column is a command voltage; spencer's \
-             command filter η is the field's lag, so the driver's lag keeps its base value"
-                .into(),
-        );
-    } else if cfg.conditioning.current_channel == CurrentChannel::CommandVoltage {
-        notes.push(format!(
-            "conditioning.driver_lag_s: the current column is the driver's command voltage; \
-             the driver's first-order lag is fitted (from {} s when the base gives none; \
-             --hold conditioning.driver_lag_s keeps the base value), its gain is held (it \
-             only rescales the laws in current)",
-            if cfg.conditioning.driver_lag_s > 0.0 {
-                cfg.conditioning.driver_lag_s
-            } else {
-                DRIVER_LAG_START_S
-            }
-        ));
-        keys.push(ParamKey::DriverLag);
+    if cfg.conditioning.current_channel == CurrentChannel::CommandVoltage {
+        if model == ModelKind::Spencer {
+            notes.push(
+                "conditioning.driver_lag_s: the current column is a command voltage; spencer's \
+                 command filter η is the field's lag, so the driver's lag keeps its base value"
+                    .into(),
+            );
+        } else {
+            notes.push(format!(
+                "conditioning.driver_lag_s: the current column is the driver's command voltage; \
+                 the driver's first-order lag is fitted (from {} s when the base gives none; \
+                 --hold conditioning.driver_lag_s keeps the base value), its gain is held (it \
+                 only rescales the laws in current)",
+                if cfg.conditioning.driver_lag_s > 0.0 {
+                    cfg.conditioning.driver_lag_s
+                } else {
+                    DRIVER_LAG_START_S
+                }
+            ));
+            keys.push(ParamKey::DriverLag);
+        }
     }
     Ok((keys, notes))
 }
