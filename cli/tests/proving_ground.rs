@@ -176,31 +176,64 @@ fn a_bi_viscous_fluid_below_yield_over_half_the_stroke_is_fitted_to_the_noise() 
     assert_reports_nothing(54, &d);
 }
 
+/// A bi-viscous null under a random current (proving-ground seed 289: viscosity ratio 283,
+/// eight knots). The baseline's start fitted to the data (relative leak 0.0056) fits the
+/// fitting blocks 27 % better than the fixed starts, not the half better that alone makes
+/// it the baseline, and the fixed starts' basin (λ = 0, an absolute leak of 13.5 mm/s)
+/// predicted the held-out blocks at 3.95 σ_F. Of the two basins the one that predicts
+/// better is kept (diagnose::model::better_basin): the fitted start's. Nothing may be
+/// found and the baseline must come near the noise.
+#[test]
+fn of_two_leak_basins_the_one_that_predicts_is_the_baseline() {
+    let (m, d) = generate_null_and_diagnose(289);
+    assert_eq!(m["fluid"]["law"], "biviscous", "the scenario changed");
+    let sigma_f = m["sigma_F_N"].as_f64().unwrap();
+    let held_out = d["baseline"]["holdout_rmse_N"].as_f64().unwrap();
+    let lambda = d["baseline_parameters"]["leak_per_yield_velocity"]
+        .as_f64()
+        .unwrap();
+    eprintln!(
+        "held-out {:.2} σ_F, relative leak {lambda:.5}",
+        held_out / sigma_f
+    );
+    assert!(
+        held_out <= 1.8 * sigma_f,
+        "baseline held-out {held_out:.1} N against σ_F {sigma_f:.1} N"
+    );
+    assert!(lambda > 0.0, "the absolute-leak basin was kept");
+    assert_reports_nothing(289, &d);
+}
+
 /// A bi-viscous null (proving-ground seed 200: viscosity ratio 265, a random current)
 /// whose steep force rise at low speed a constant seal-friction step of 2.1 kN fitted, with
 /// no presliding displacement resolved, better than the same step scaled by the yield
-/// force: it was reported as a seal. Scaled by the viscous coefficient it fits better still,
-/// so it is the fluid's shape: nothing is reported, and the final model carries it.
+/// force: it was reported as a seal. It is the fluid's: nothing is reported, and the final
+/// model carries the rise, in the baseline's relative leak (since 2026-11-27, the basin that
+/// predicts better: model::better_basin) or as a step scaled by the viscous coefficient in
+/// the fluid's shape (before), and predicts the held-out blocks near the noise.
 #[test]
 fn a_bi_viscous_rise_at_low_speed_is_the_fluids_shape_not_a_seal() {
     let (m, d) = generate_null_and_diagnose(200);
     assert_eq!(m["fluid"]["law"], "biviscous", "the scenario changed");
     assert_reports_nothing(200, &d);
     let shape = d["fluid_shape"].as_array().unwrap();
+    let lambda = d["final_parameters"]["leak_per_yield_velocity"]
+        .as_f64()
+        .unwrap();
     assert!(
-        shape.iter().any(|s| s["follows"] == "viscous_coefficient"
-            && s["explanation"]
-                .as_str()
-                .unwrap()
-                .contains("viscous coefficient")),
-        "no viscosity-scaled step in the fluid's shape: {shape:?}"
+        lambda > 0.0 || shape.iter().any(|s| s["follows"] == "viscous_coefficient"),
+        "neither a relative leak nor a viscosity-scaled step carries the rise: {shape:?}"
     );
-    // Carried for prediction, it must predict the held-out blocks better.
-    let (base, fin) = (
-        d["baseline"]["holdout_rmse_N"].as_f64().unwrap(),
-        d["final"]["holdout_rmse_N"].as_f64().unwrap(),
+    let sigma_f = m["sigma_F_N"].as_f64().unwrap();
+    let fin = d["final"]["holdout_rmse_N"].as_f64().unwrap();
+    eprintln!(
+        "final held-out {:.2} σ_F, relative leak {lambda}",
+        fin / sigma_f
     );
-    assert!(fin < base, "held-out {base} → {fin} N");
+    assert!(
+        fin <= 1.2 * sigma_f,
+        "final held-out {fin} N, σ_F {sigma_f} N"
+    );
 }
 
 /// The current channel's measurement model (diagnose::current) on three nulls of the
@@ -493,16 +526,17 @@ fn a_field_lag_is_fitted_on_current_steps_the_split_keeps_in_the_fitting_blocks(
     );
 }
 
-/// A record that almost never yields (proving-ground null seed 212: random strokes of
-/// ±0.1 mm after the first second at 200 Hz, 0.075 A held, then 1.27 A): neither knot's
-/// yield force and viscous coefficient is pinned down, they run to values that cancel on
-/// the fitting blocks, and the held-out block across the current step is predicted from
-/// their interpolation, far off. The report must say so (`unidentified_knots`), not only
-/// carry a large held-out RMS, and a real damper's knots must not be flagged.
+/// A record whose fitting blocks do not pin a knot down (proving-ground null seed 81: a
+/// bi-viscous fluid, viscosity ratio 470, under a random current on eight knots; the
+/// 0.935 A knot's viscous coefficient runs to about 10⁹ N s/m, where its force is carried by
+/// the pre-yield ramp). The report must say so (`unidentified_knots`), not only carry a
+/// large held-out RMS, and a real damper's knots must not be flagged. (Until 2026-11-27 this
+/// was null 212, whose two knots ran to 1.9·10⁸ N and 2·10¹⁰ N s/m; the baseline's other
+/// leak basin now predicts it, model::better_basin, and pins both.)
 #[test]
 fn knots_a_record_does_not_identify_are_named() {
-    let (_, d) = generate_null_and_diagnose(212);
-    assert_reports_nothing(212, &d);
+    let (_, d) = generate_null_and_diagnose(81);
+    assert_reports_nothing(81, &d);
     let knots = d["unidentified_knots"].as_array().unwrap();
     eprintln!("{knots:#?}");
     let currents: Vec<f64> = knots
@@ -510,8 +544,8 @@ fn knots_a_record_does_not_identify_are_named() {
         .map(|k| k["current_a"].as_f64().unwrap())
         .collect();
     assert!(
-        currents.iter().any(|i| (i - 1.27).abs() < 0.01),
-        "the 1.27 A knot is not named: {knots:?}"
+        currents.iter().any(|i| (i - 0.935).abs() < 0.01),
+        "the 0.935 A knot is not named: {knots:?}"
     );
     for k in knots {
         let why = k["why"].as_str().unwrap();

@@ -1314,18 +1314,25 @@ pub fn diagnose(signals: &Signals, input: &str, opts: &Options) -> Result<Diagno
 /// without it; and it must predict the held-out blocks better too. Sets `d.anti_alias`
 /// and returns the baseline under it.
 ///
-/// The plain baseline is the better of two starts of its relative leak
-/// ([`crate::model::fit_baseline`]).
+/// The baseline's basins are those of [`crate::model::baseline_basins`]; of them the one
+/// that predicts the held-out blocks better, under the filter where the steps show it
+/// ([`crate::model::better_basin`]).
 fn baseline_and_anti_alias(d: &mut Prepared, base_effects: &[Effect]) -> Fit {
     use crate::antialias::{AntiAlias, CUTOFF_GRID};
+    use crate::model::better_basin;
     d.set_anti_alias(None);
-    let mut plain = crate::model::fit_baseline(d);
-    for &e in base_effects {
-        if plain.layout.index(e).is_none() {
-            plain = fit_candidate(d, &plain, e);
-        }
-    }
-    let lay = plain.layout.clone();
+    let basins: Vec<Fit> = crate::model::baseline_basins(d)
+        .into_iter()
+        .map(|mut b| {
+            for &e in base_effects {
+                if b.layout.index(e).is_none() {
+                    b = fit_candidate(d, &b, e);
+                }
+            }
+            b
+        })
+        .collect();
+    let lay = basins[0].layout.clone();
     let dt = d.measurement.sample_interval_s;
     // The current's steps went through the same front end as the force: where they show
     // its cut-off clearly, that is the filter, read from a channel no force model can
@@ -1336,8 +1343,12 @@ fn baseline_and_anti_alias(d: &mut Prepared, base_effects: &[Effect]) -> Fit {
         d.set_anti_alias(Some(
             AntiAlias::butterworth2(fc * dt, dt).from_current_steps(),
         ));
-        return fit(d, &lay, &plain.theta);
+        let filtered = numerics::parallel::map_indexed(basins.len(), basins.len(), |k| {
+            fit(d, &lay, &basins[k].theta)
+        });
+        return better_basin(d, filtered);
     }
+    let plain = better_basin(d, basins);
     let mut filtered: Vec<(AntiAlias, Fit)> =
         numerics::parallel::map_indexed(CUTOFF_GRID.len(), CUTOFF_GRID.len(), |k| {
             let aa = AntiAlias::butterworth2(CUTOFF_GRID[k], dt);
