@@ -142,6 +142,19 @@ fn assert_reports_nothing(seed: u32, d: &serde_json::Value) {
     );
 }
 
+/// A bi-viscous null scenario diagnosed: its metadata, the diagnosis, σ_F, the baseline's
+/// held-out RMS and its relative leak λ.
+fn bi_viscous_null_baseline(seed: u32) -> (serde_json::Value, serde_json::Value, f64, f64, f64) {
+    let (m, d) = generate_null_and_diagnose(seed);
+    assert_eq!(m["fluid"]["law"], "biviscous", "the scenario changed");
+    let sigma_f = m["sigma_F_N"].as_f64().unwrap();
+    let held_out = d["baseline"]["holdout_rmse_N"].as_f64().unwrap();
+    let lambda = d["baseline_parameters"]["leak_per_yield_velocity"]
+        .as_f64()
+        .unwrap();
+    (m, d, sigma_f, held_out, lambda)
+}
+
 /// A bi-viscous fluid whose pre-yield ramp spans half the stroke (proving-ground null
 /// seed 54: viscosity ratio 495, a civil damper whose force is a steep line up to
 /// 18 kN at 28 mm/s and nearly flat above it, 43 mm/s peak). The baseline's relative leak
@@ -153,13 +166,7 @@ fn assert_reports_nothing(seed: u32, d: &serde_json::Value) {
 /// strokes at 1.0 A).
 #[test]
 fn a_bi_viscous_fluid_below_yield_over_half_the_stroke_is_fitted_to_the_noise() {
-    let (m, d) = generate_null_and_diagnose(54);
-    assert_eq!(m["fluid"]["law"], "biviscous", "the scenario changed");
-    let sigma_f = m["sigma_F_N"].as_f64().unwrap();
-    let held_out = d["baseline"]["holdout_rmse_N"].as_f64().unwrap();
-    let lambda = d["baseline_parameters"]["leak_per_yield_velocity"]
-        .as_f64()
-        .unwrap();
+    let (m, d, sigma_f, held_out, lambda) = bi_viscous_null_baseline(54);
     let truth = 1.0 / m["fluid"]["visc_ratio"].as_f64().unwrap();
     eprintln!(
         "held-out {:.2} σ_F, relative leak {lambda:.5} (1/ratio {truth:.5})",
@@ -185,13 +192,7 @@ fn a_bi_viscous_fluid_below_yield_over_half_the_stroke_is_fitted_to_the_noise() 
 /// found and the baseline must come near the noise.
 #[test]
 fn of_two_leak_basins_the_one_that_predicts_is_the_baseline() {
-    let (m, d) = generate_null_and_diagnose(289);
-    assert_eq!(m["fluid"]["law"], "biviscous", "the scenario changed");
-    let sigma_f = m["sigma_F_N"].as_f64().unwrap();
-    let held_out = d["baseline"]["holdout_rmse_N"].as_f64().unwrap();
-    let lambda = d["baseline_parameters"]["leak_per_yield_velocity"]
-        .as_f64()
-        .unwrap();
+    let (_, d, sigma_f, held_out, lambda) = bi_viscous_null_baseline(289);
     eprintln!(
         "held-out {:.2} σ_F, relative leak {lambda:.5}",
         held_out / sigma_f
