@@ -136,12 +136,12 @@ def score(entry):
     found = fnd.union(*und) if und else set(fnd)
     false = fnd - hidden
     b, f = entry.get("baseline_rmse"), entry.get("final_rmse")
-    improved = bool(fnd) and b is not None and f is not None and b > 0 and f <= 0.9 * b
+    gain = bool(fnd) and b is not None and f is not None
+    improved = gain and b > 0 and f <= 0.9 * b
     # Near the noise floor a 10 % fall of the RMS is out of reach (a baseline at 1.05 σ_F
     # can fall 5 % at most): the same fall measured on the RMS above σ_F.
     sig = entry.get("sigma_F")
-    improved_excess = (bool(fnd) and b is not None and f is not None and sig is not None
-                       and b > sig and b - f >= 0.1 * (b - sig))
+    improved_excess = gain and sig is not None and b > sig and b - f >= 0.1 * (b - sig)
     ua = dict(zip(entry["hidden"], entry.get("u_unabsorbed", [])))
     optional = {e for e in hidden if ua.get(e, float("inf")) < IDENTIFIABLE_U}
     exact_id = (fnd - optional) == (hidden - optional) and not false and not und
