@@ -205,6 +205,21 @@ def fine_grid_convergence(seeds=(20, 41, 57)):
               f"recorded force on the record's grid vs 4x finer: {err:.3f} sigma_F")
 
 
+def null_twin(seed=19):
+    """A seed's null twin is the same scenario with nothing hidden: the same excitation
+    and measurement noise (displacement and current columns identical), no hidden
+    effect, and a force that differs by the hidden effects alone."""
+    meta, rec = generate.scenario(seed)
+    nmeta, nrec = generate.scenario(seed, null_twin=True)
+    same = all(np.array_equal(rec[k], nrec[k]) for k in ("time_s", "displacement_m", "current_A"))
+    df = float(np.sqrt(np.mean((rec["force_N"] - nrec["force_N"]) ** 2)))
+    check("null twin keeps the scenario, drops the hidden effects",
+          same and meta["hidden"] and not nmeta["hidden"] and df > meta["sigma_F_N"]
+          and nmeta["geometry"] == meta["geometry"] and nmeta["fluid"] == meta["fluid"],
+          f"seed {seed}: hidden {meta['hidden']} -> {nmeta['hidden']}, x/I/t identical: {same}, "
+          f"force RMS difference {df:.1f} N (σ_F {meta['sigma_F_N']:.1f} N)")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--seeds", type=int, default=40)
@@ -214,6 +229,7 @@ def main():
     blocked_stiffness()
     energy()
     fine_grid_convergence()
+    null_twin()
     effect_sizes(args.seeds)
     print(f"{len(FAILS)} failed" if FAILS else "all checks passed")
     sys.exit(1 if FAILS else 0)

@@ -437,13 +437,16 @@ def size_effect(rig, p_base, F_base, eff, st, target, tol=0.05, max_runs=9):
 # ---------------------------------------------------------------------------------------
 
 
-def scenario(seed, truth=None):
+def scenario(seed, truth=None, null_twin=False):
     """Draw and simulate one scenario. Returns (meta dict, recording dict of arrays).
 
     `truth`: an optional dict, filled with what the fluid really had at each recorded
-    sample (`yield_truth`); the recording and the meta do not depend on it."""
+    sample (`yield_truth`); the recording and the meta do not depend on it.
+    `null_twin`: the same scenario with nothing hidden (damper, fluid, excitation, heat and
+    measurement drawn as for `seed`, each from its own stream): how far the base law alone
+    sits from a model, without the hidden effects."""
     rs = _streams(seed)
-    hidden = plan(seed)
+    hidden = [] if null_twin else plan(seed)
     geo = draw_geometry(rs["geometry"])
     fl = draw_fluid(rs["fluid"], geo)
     p_base = base_params(geo, fl, rs["fluid"])
@@ -609,8 +612,10 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, required=True)
     ap.add_argument("--out", required=True, help="CSV recording to write")
     ap.add_argument("--meta", help="JSON with the hidden truth and all drawn settings")
+    ap.add_argument("--null-twin", action="store_true",
+                    help="the same scenario with nothing hidden (its null twin)")
     args = ap.parse_args(argv)
-    meta, rec = scenario(args.seed)
+    meta, rec = scenario(args.seed, null_twin=args.null_twin)
     write_csv(args.out, rec)
     if args.meta:
         with open(args.meta, "w") as f:
