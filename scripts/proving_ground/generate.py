@@ -446,11 +446,13 @@ def scenario(seed, truth=None, null_twin=False):
     measurement drawn as for `seed`, each from its own stream): how far the base law alone
     sits from a model, without the hidden effects."""
     rs = _streams(seed)
-    hidden = [] if null_twin else plan(seed)
+    planned = plan(seed)
+    hidden = [] if null_twin else planned
     geo = draw_geometry(rs["geometry"])
     fl = draw_fluid(rs["fluid"], geo)
     p_base = base_params(geo, fl, rs["fluid"])
-    exc, t, x, v, a, icmd = draw_excitation(rs["excitation"], fl, "field_lag" in hidden)
+    # A planned field lag forces current steps; the null twin keeps its seed's excitation.
+    exc, t, x, v, a, icmd = draw_excitation(rs["excitation"], fl, "field_lag" in planned)
     exc["peak_x"] = float(np.max(np.abs(x)))
     meas = draw_measurement(rs["measurement"], exc["fs_hz"])
     rig = Rig(exc, t, x, v, a, icmd, meas)
