@@ -22,7 +22,8 @@ use numerics::least_squares::LmStop;
 use serde::Serialize;
 use serde_json::json;
 use twin::models::{
-    BinghamParams, FluidLaw, ModelKind, ModelParams, SpencerParams, TwoChamberParams,
+    polynomial_in_current, BinghamParams, FluidLaw, ModelKind, ModelParams, SpencerParams,
+    TwoChamberParams,
 };
 use twin::EffectSet;
 
@@ -197,8 +198,93 @@ pub struct Calibrated {
     pub notes: Vec<String>,
 }
 
-/// Calibrate `config` to `records` (see [`Calibrated`]).
+/// The keys that make a law in current more than a quadratic (`[3]` and `[4]` of
+/// `yield_stress_pa` and `viscosity_pa_s`).
+const BEYOND_QUADRATIC: [&str; 4] = [
+    "two_chamber.fluid.yield_stress_pa[3]",
+    "two_chamber.fluid.yield_stress_pa[4]",
+    "two_chamber.fluid.viscosity_pa_s[3]",
+    "two_chamber.fluid.viscosity_pa_s[4]",
+];
+
+/// The first law in current of `fluid` (`yield_stress_pa`, then `viscosity_pa_s`) that
+/// falls as the current rises within [0, `peak`] A, by more than 2 % of its largest value
+/// there, with the current where it falls; `None` when both rise (or hold).
+fn falling_law(fluid: &twin::models::FluidParams, peak: f64) -> Option<(&'static str, f64)> {
+    const GRID: usize = 200;
+    for (name, c) in [
+        ("yield_stress_pa", &fluid.yield_stress_pa),
+        ("viscosity_pa_s", &fluid.viscosity_pa_s),
+    ] {
+        let at = |k: usize| {
+            let i = peak * k as f64 / GRID as f64;
+            (i, polynomial_in_current(c, i))
+        };
+        let top = (0..=GRID).map(|k| at(k).1).fold(0.0f64, f64::max);
+        let mut high = 0.0f64;
+        for k in 0..=GRID {
+            let (i, v) = at(k);
+            if v < high - 0.02 * top {
+                return Some((name, i));
+            }
+            high = high.max(v);
+        }
+    }
+    None
+}
+
+/// Calibrate `config` to `records` (see [`Calibrated`]). When the records hold more than
+/// three current levels, the laws in current are fitted with up to five coefficients
+/// (`node::fit::free_parameters`); if a fitted law then falls as the current rises within
+/// the records' currents (an MR fluid's yield stress and viscosity rise with field: Dyke's
+/// command-voltage record gave a τ_y quartic that halves between 0.4 and 1.2 V and rises
+/// again), the fit is made again with quadratics and the notes say why.
 pub fn calibrate(
+    config: &PipelineConfig,
+    records: &[Vec<SensorSample>],
+    blocks: usize,
+    hold: &[String],
+) -> Result<Calibrated> {
+    let c = calibrate_laws_as_given(config, records, blocks, hold)?;
+    let fitted = c.full.applied_to(config);
+    let fluid = &fitted.params.two_chamber.fluid;
+    let beyond_quadratic = fluid.yield_stress_pa.len() > 3 || fluid.viscosity_pa_s.len() > 3;
+    let falling = match fluid.current_range_a {
+        peak if beyond_quadratic && peak > 0.0 => falling_law(fluid, peak),
+        _ => None,
+    };
+    let Some((law, at)) = falling else {
+        return Ok(c);
+    };
+    let mut quadratic = config.clone();
+    for c in [
+        &mut quadratic.params.two_chamber.fluid.yield_stress_pa,
+        &mut quadratic.params.two_chamber.fluid.viscosity_pa_s,
+    ] {
+        c.truncate(3);
+    }
+    let mut hold = hold.to_vec();
+    for k in BEYOND_QUADRATIC {
+        if !hold.iter().any(|h| h == k) {
+            hold.push(k.to_string());
+        }
+    }
+    let mut q = calibrate_laws_as_given(&quadratic, records, blocks, &hold)?;
+    q.notes.retain(|n| {
+        !BEYOND_QUADRATIC
+            .iter()
+            .any(|k| n.starts_with(&format!("{k} held")))
+    });
+    q.notes.push(format!(
+        "the laws in current were then fitted as quadratics instead: with {} \
+         coefficients, two_chamber.fluid.{law} fell as the current rose (at {at:.3} A)",
+        fluid.yield_stress_pa.len().max(fluid.viscosity_pa_s.len())
+    ));
+    Ok(q)
+}
+
+/// [`calibrate`] with the laws in current as [`free_parameters`] gives them.
+fn calibrate_laws_as_given(
     config: &PipelineConfig,
     records: &[Vec<SensorSample>],
     blocks: usize,
@@ -223,6 +309,22 @@ pub fn calibrate(
         keys.retain(|k| !held(k));
         notes.push(format!("{h} held at its base value (--hold)"));
     }
+    // A law in current beyond a quadratic is held at the records' peak current.
+    let mut config = config.clone();
+    if keys.contains(&ParamKey::YieldStress(3)) {
+        let peak = records
+            .iter()
+            .flatten()
+            .map(|s| s.current_a.abs())
+            .filter(|i| i.is_finite())
+            .fold(0.0f64, f64::max);
+        config.params.two_chamber.fluid.current_range_a = peak;
+        notes.push(format!(
+            "two_chamber.fluid.current_range_a = {peak} A: above the records' peak current \
+             the laws in current are held at their value there"
+        ));
+    }
+    let config = &config;
     let blocks = blocks.max(2);
     let mask = alternate_blocks(records, blocks);
     let split_problem = FitProblem {
@@ -384,7 +486,8 @@ pub fn calibrate_with_leak_trial(
     match (plain, leaky) {
         (Ok(p), Ok(mut l)) if l.holdout_rmse_n < (1.0 - LEAK_MIN_GAIN) * p.holdout_rmse_n => {
             l.notes.push(format!(
-                "{LEAK_KEY}: a pre-yield leak was tried and kept: held-out RMS {:.4} N without,                  {:.4} N with (at least {:.0} % lower needed)",
+                "{LEAK_KEY}: a pre-yield leak was tried and kept: held-out RMS {:.4} N \
+                 without, {:.4} N with (at least {:.0} % lower needed)",
                 p.holdout_rmse_n,
                 l.holdout_rmse_n,
                 100.0 * LEAK_MIN_GAIN
@@ -394,7 +497,8 @@ pub fn calibrate_with_leak_trial(
         (Ok(mut p), l) => {
             p.notes.push(match l {
                 Ok(l) => format!(
-                    "{LEAK_KEY}: a pre-yield leak was tried and not kept: held-out RMS {:.4} N                      without, {:.4} N with (at least {:.0} % lower needed)",
+                    "{LEAK_KEY}: a pre-yield leak was tried and not kept: held-out RMS {:.4} N \
+                     without, {:.4} N with (at least {:.0} % lower needed)",
                     p.holdout_rmse_n,
                     l.holdout_rmse_n,
                     100.0 * LEAK_MIN_GAIN
@@ -502,4 +606,34 @@ pub fn run(args: &FitArgs) -> Result<()> {
     }
     println!("wrote {}", args.out.display());
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The fitted quartics of two real records: UTFSM 25mm0x5Hz's rise over its 0–1 A;
+    /// Dyke's τ_y (over 0–2.7 V of command) halves between 0.4 and 1.2 and rises again.
+    #[test]
+    fn a_law_that_falls_as_the_current_rises_is_found_and_named() {
+        let mut fluid = twin::models::FluidParams {
+            yield_stress_pa: vec![3361.1, 7214.2, 75111.4, -101351.7, 41912.1],
+            viscosity_pa_s: vec![0.2215, 0.7222, 4.8739, -8.4522, 4.301],
+            ..Default::default()
+        };
+        assert_eq!(falling_law(&fluid, 1.0), None);
+        fluid.yield_stress_pa = vec![7739.8, 140667.3, -286916.3, 189935.3, -39488.4];
+        let (law, at) = falling_law(&fluid, 2.7).unwrap();
+        assert_eq!(law, "yield_stress_pa");
+        assert!((0.4..0.6).contains(&at), "{at}");
+        // A 2 % dip is tolerated; a falling viscosity is named as well.
+        fluid.yield_stress_pa = vec![1000.0, 10_000.0];
+        fluid.viscosity_pa_s = vec![1.0, 0.0, 0.0, 0.0, -0.015];
+        assert_eq!(falling_law(&fluid, 1.0), None);
+        fluid.viscosity_pa_s = vec![1.0, 0.0, 0.0, 0.0, -0.5];
+        assert_eq!(
+            falling_law(&fluid, 1.0).map(|f| f.0),
+            Some("viscosity_pa_s")
+        );
+    }
 }

@@ -125,8 +125,8 @@ fn programme(t: f64) -> (f64, f64, f64, f64) {
 /// temperature rise \[K\] (0 when isothermal).
 pub fn generate(scn: &Scenario, seed: u64) -> (Signals, f64) {
     let mut p = TwoChamberParams::default();
-    p.fluid.yield_stress_pa = [500.0, 40_000.0, 0.0];
-    p.fluid.viscosity_pa_s = [0.092, 0.35, 0.0];
+    p.fluid.yield_stress_pa = vec![500.0, 40_000.0, 0.0];
+    p.fluid.viscosity_pa_s = vec![0.092, 0.35, 0.0];
     p.bulk_modulus_pa = 1.5e9;
     p.gas_preload_pa = 1.17e6;
     p.heat_capacity_j_per_k = 450.0;

@@ -12,7 +12,10 @@ use estimation::online::{
 };
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
-use twin::models::{quadratic_in_current, BinghamDamper, BinghamParams, ModelKind, ModelParams};
+use twin::models::{
+    polynomial_in_current, quadratic_in_current, BinghamDamper, BinghamParams, ModelKind,
+    ModelParams,
+};
 use twin::stand::Programme;
 use twin::DamperModel;
 
@@ -27,7 +30,12 @@ impl Truth {
         let mp = ModelParams::default();
         let a = force_per_pa(ModelKind::TwoChamber, &mp).unwrap();
         let tc = &mp.two_chamber;
-        let tau_y = tc.fluid.yield_stress_pa;
+        let tau_y: [f64; 3] = tc
+            .fluid
+            .yield_stress_pa
+            .clone()
+            .try_into()
+            .expect("the default fluid's τ_y is a quadratic");
         Self {
             a,
             tau_y,
@@ -195,7 +203,7 @@ fn converges_on_the_two_chamber_damper_of_the_second_paper() {
             seed: 5,
         }),
     );
-    let truth = |i: f64| quadratic_in_current(&mp.two_chamber.fluid.yield_stress_pa, i);
+    let truth = |i: f64| polynomial_in_current(&mp.two_chamber.fluid.yield_stress_pa, i);
     let mut est = YieldEstimator::new(EstimatorConfig::default(), a);
     let mut entered = (f64::NAN, 0.0);
     let mut report = String::new();

@@ -17,7 +17,8 @@
 
 use serde::{Deserialize, Serialize};
 use twin::models::{
-    BinghamParams, DirectShearParams, ModelKind, ModelParams, SpencerParams, TwoChamberParams,
+    BinghamParams, DirectShearParams, FluidParams, ModelKind, ModelParams, SpencerParams,
+    TwoChamberParams, MAX_CURRENT_COEFFS,
 };
 use twin::EffectsChoice;
 
@@ -142,6 +143,26 @@ pub struct InvalidParam {
     pub reason: String,
 }
 
+/// The two-chamber fluid's laws in current (`yield_stress_pa`, `viscosity_pa_s`): 1 to
+/// [`MAX_CURRENT_COEFFS`] finite coefficients each. Checked for the twin and the stand.
+pub(crate) fn check_laws_in_current(fluid: &FluidParams) -> Result<(), InvalidParam> {
+    for (key, c) in [
+        ("two_chamber.fluid.yield_stress_pa", &fluid.yield_stress_pa),
+        ("two_chamber.fluid.viscosity_pa_s", &fluid.viscosity_pa_s),
+    ] {
+        if c.is_empty() || c.len() > MAX_CURRENT_COEFFS || !c.iter().all(|v| v.is_finite()) {
+            return Err(InvalidParam {
+                key,
+                reason: format!(
+                    "must be 1 to {MAX_CURRENT_COEFFS} finite coefficients \
+                     (c0 + c1 |I| + c2 I² + …), got {c:?}"
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
 impl TwinNodeParams {
     /// The transport settings of node `node_fqn` (the twin, or a tool speaking for it:
     /// replay, record) with these parameters.
@@ -225,7 +246,9 @@ impl TwinNodeParams {
             }
         };
         let fluid = &self.two_chamber.fluid;
+        check_laws_in_current(fluid)?;
         non_negative("two_chamber.fluid.pre_yield_leak", fluid.pre_yield_leak)?;
+        non_negative("two_chamber.fluid.current_range_a", fluid.current_range_a)?;
         non_negative("two_chamber.fluid.yield_step_share", fluid.yield_step_share)?;
         positive(
             "two_chamber.fluid.yield_step_velocity_m_s",
@@ -368,6 +391,41 @@ mod tests {
         let p = parse("    estimator:\n      settings:\n        model_form_share: 0.5\n").unwrap();
         p.validate().unwrap();
         assert_eq!(p.estimator.settings.model_form_share, 0.5);
+    }
+
+    #[test]
+    fn laws_in_current_take_one_to_five_finite_coefficients_and_a_range_of_at_least_zero() {
+        let fluid = |body: &str| parse(&format!("    two_chamber:\n      fluid:\n{body}")).unwrap();
+        for (body, key) in [
+            (
+                "        yield_stress_pa: [1, 2, 3, 4, 5, 6]\n",
+                "two_chamber.fluid.yield_stress_pa",
+            ),
+            (
+                "        viscosity_pa_s: []\n",
+                "two_chamber.fluid.viscosity_pa_s",
+            ),
+            (
+                "        viscosity_pa_s: [0.1, .nan]\n",
+                "two_chamber.fluid.viscosity_pa_s",
+            ),
+            (
+                "        current_range_a: -1.0\n",
+                "two_chamber.fluid.current_range_a",
+            ),
+        ] {
+            let e = fluid(body).validate().unwrap_err();
+            assert_eq!(e.key, key, "{body}");
+        }
+        let p = fluid("        yield_stress_pa: [1, 2, 3, 4, 5]\n        current_range_a: 1.0\n");
+        p.validate().unwrap();
+        assert_eq!(
+            p.two_chamber.fluid.yield_stress_pa,
+            [1.0, 2.0, 3.0, 4.0, 5.0]
+        );
+        fluid("        yield_stress_pa: [4000]\n")
+            .validate()
+            .unwrap();
     }
 
     #[test]

@@ -25,7 +25,7 @@ use numerics::least_squares::{
     levenberg_marquardt, normal_equations, sum_of_squares, LmOptions, LmStop,
 };
 use numerics::parallel::map_indexed;
-use twin::models::{FluidLaw, ModelKind, ModelParams, SpencerParams};
+use twin::models::{FluidLaw, ModelKind, ModelParams, SpencerParams, MAX_CURRENT_COEFFS};
 use twin::{Effect, EffectSet};
 
 use crate::conditioning::{ConditioningConfig, CurrentChannel, SensorSample};
@@ -193,8 +193,8 @@ impl ParamKey {
             ParamKey::BinghamFriction(k) => p.bingham.friction_force_n[k],
             ParamKey::BinghamDamping(k) => p.bingham.damping_n_s_m[k],
             ParamKey::BinghamOffset => p.bingham.offset_n,
-            ParamKey::YieldStress(k) => t.fluid.yield_stress_pa[k],
-            ParamKey::Viscosity(k) => t.fluid.viscosity_pa_s[k],
+            ParamKey::YieldStress(k) => coefficient(&t.fluid.yield_stress_pa, k),
+            ParamKey::Viscosity(k) => coefficient(&t.fluid.viscosity_pa_s, k),
             ParamKey::FlowIndex => t.fluid.flow_index,
             ParamKey::PreYieldLeak => t.fluid.pre_yield_leak,
             ParamKey::YieldStepShare => t.fluid.yield_step_share,
@@ -219,8 +219,8 @@ impl ParamKey {
             ParamKey::BinghamFriction(k) => p.bingham.friction_force_n[k] = v,
             ParamKey::BinghamDamping(k) => p.bingham.damping_n_s_m[k] = v,
             ParamKey::BinghamOffset => p.bingham.offset_n = v,
-            ParamKey::YieldStress(k) => t.fluid.yield_stress_pa[k] = v,
-            ParamKey::Viscosity(k) => t.fluid.viscosity_pa_s[k] = v,
+            ParamKey::YieldStress(k) => set_coefficient(&mut t.fluid.yield_stress_pa, k, v),
+            ParamKey::Viscosity(k) => set_coefficient(&mut t.fluid.viscosity_pa_s, k, v),
             ParamKey::FlowIndex => t.fluid.flow_index = v,
             ParamKey::PreYieldLeak => t.fluid.pre_yield_leak = v,
             ParamKey::YieldStepShare => t.fluid.yield_step_share = v,
@@ -262,6 +262,19 @@ impl fmt::Display for ParamKey {
     }
 }
 
+/// Coefficient `k` of a law in current (absent ones are 0).
+fn coefficient(c: &[f64], k: usize) -> f64 {
+    c.get(k).copied().unwrap_or(0.0)
+}
+
+/// Set coefficient `k` of a law in current, padding with zeros up to it.
+fn set_coefficient(c: &mut Vec<f64>, k: usize, v: f64) {
+    if c.len() <= k {
+        c.resize(k + 1, 0.0);
+    }
+    c[k] = v;
+}
+
 /// The parameters a record can identify for `model` with `effects`, and what each
 /// choice means (the notes go into the fit's report). `current_levels` is the number of
 /// distinct current levels in the records (a continuously varying current counts as
@@ -274,6 +287,8 @@ pub fn free_parameters(
 ) -> Result<(Vec<ParamKey>, Vec<String>), FitError> {
     let (model, params, effects) = (cfg.model, &cfg.params, cfg.effects);
     let k = current_levels.clamp(1, 3);
+    // The two-chamber fluid's laws take up to a quartic: one coefficient per level.
+    let k_fluid = current_levels.clamp(1, MAX_CURRENT_COEFFS);
     let mut notes = Vec::new();
     if k < 3 && model != ModelKind::Spencer {
         notes.push(format!(
@@ -295,8 +310,16 @@ pub fn free_parameters(
                  fitted here as τ_y(I) and μ(I) at the base geometry"
                     .into(),
             );
-            keys.extend((0..k).map(ParamKey::YieldStress));
-            keys.extend((0..k).map(ParamKey::Viscosity));
+            if k_fluid > 3 {
+                notes.push(format!(
+                    "the records hold {current_levels} current levels: τ_y(I) and μ(I) are \
+                     fitted with {k_fluid} coefficients each (c0 + c1 |I| + … + c{} |I|^{})",
+                    k_fluid - 1,
+                    k_fluid - 1
+                ));
+            }
+            keys.extend((0..k_fluid).map(ParamKey::YieldStress));
+            keys.extend((0..k_fluid).map(ParamKey::Viscosity));
             if params.two_chamber.fluid.law == FluidLaw::HerschelBulkley {
                 keys.push(ParamKey::FlowIndex);
             }

@@ -163,6 +163,7 @@ impl StandParams {
 
     fn validate(&self) -> Result<(), InvalidParam> {
         let bad = |key, reason: String| Err(InvalidParam { key, reason });
+        crate::config::check_laws_in_current(&self.two_chamber.fluid)?;
         if !(self.rate_hz.is_finite() && self.rate_hz > 0.0 && self.rate_hz <= 1e6) {
             return bad(
                 "rate_hz",

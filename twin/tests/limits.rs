@@ -36,12 +36,20 @@ fn peak(samples: &[SimulatedSample]) -> f64 {
 fn incompressible_bingham_force(p: &TwoChamberParams, x: f64, v: f64, i: f64) -> f64 {
     let a1 = p.annulus_area();
     let ar = p.rod_area();
-    let tau_y = p.fluid.yield_stress_pa[0]
-        + p.fluid.yield_stress_pa[1] * i
-        + p.fluid.yield_stress_pa[2] * i * i;
-    let mu = p.fluid.viscosity_pa_s[0]
-        + p.fluid.viscosity_pa_s[1] * i
-        + p.fluid.viscosity_pa_s[2] * i * i;
+    // The laws in current as power sums, at most at `current_range_a` when it is set.
+    let i = if p.fluid.current_range_a > 0.0 {
+        i.min(p.fluid.current_range_a)
+    } else {
+        i
+    };
+    let power_sum = |c: &[f64]| -> f64 {
+        c.iter()
+            .enumerate()
+            .map(|(k, ck)| ck * i.powi(k as i32))
+            .sum()
+    };
+    let tau_y = power_sum(&p.fluid.yield_stress_pa);
+    let mu = power_sum(&p.fluid.viscosity_pa_s);
     let b = 2.0 * std::f64::consts::PI * p.gap_mean_radius_m;
     let (h, l) = (p.gap_height_m, p.gap_active_length_m);
     let g = b * h.powi(3) / (12.0 * mu * l);
@@ -92,6 +100,48 @@ fn incompressible_model_is_the_analytic_bingham_damper() {
             smp.output.force_n
         );
     }
+}
+
+/// Laws in current with five coefficients (a quartic, as `mrtwin fit` writes for five
+/// current levels) give the analytic damper with τ_y and μ summed term by term, and above
+/// `current_range_a` the laws are held at their value there: the force at 1.2 A equals the
+/// force at the range's 0.9 A.
+#[test]
+fn quartic_laws_in_current_are_the_analytic_damper_and_are_held_above_their_range() {
+    let mut params = TwoChamberParams::default();
+    params.fluid.yield_stress_pa = vec![800.0, 30_000.0, 20_000.0, -25_000.0, 8_000.0];
+    params.fluid.viscosity_pa_s = vec![0.1, 0.4, 0.3, -0.2, 0.05];
+    params.fluid.current_range_a = 0.9;
+    let effects = EffectSet::NONE.with(Effect::GasSpring);
+    let mut at_edge = Vec::new();
+    for current in [0.45, 0.9, 1.2] {
+        let mut m = TwoChamber::new(params.clone(), effects);
+        let s = run(&mut m, &programme(0.01, 3.33, current, 0.6, 1000.0), None);
+        let pk = peak(&s);
+        for smp in &s {
+            let (x, v) = (smp.input.displacement_m, smp.input.velocity_m_s);
+            let analytic = incompressible_bingham_force(&params, x, v, current);
+            assert!(
+                (smp.output.force_n - analytic).abs() < 1e-6 * pk,
+                "{current} A, t={}: {} vs {analytic}",
+                smp.time_s,
+                smp.output.force_n
+            );
+        }
+        if current >= 0.9 {
+            at_edge.push(s.iter().map(|x| x.output.force_n).collect::<Vec<_>>());
+        }
+    }
+    assert_eq!(at_edge[0], at_edge[1], "held above the range");
+    // Without the range the quartic goes on: the force at 1.2 A differs.
+    params.fluid.current_range_a = 0.0;
+    let mut m = TwoChamber::new(params.clone(), effects);
+    let s = run(&mut m, &programme(0.01, 3.33, 1.2, 0.6, 1000.0), None);
+    let beyond: Vec<f64> = s.iter().map(|x| x.output.force_n).collect();
+    assert!(beyond
+        .iter()
+        .zip(&at_edge[0])
+        .any(|(a, b)| (a - b).abs() > 1.0));
 }
 
 /// The fluid's yield step (`fluid.yield_step_share` β): the analytic damper plus
@@ -161,7 +211,7 @@ fn infinite_bulk_modulus_recovers_the_incompressible_damper() {
 fn blocked_flow_is_a_spring_of_stiffness_k_a1_squared_over_v1() {
     // A yield stress far above anything the stroke can reach blocks the gap.
     let mut p = TwoChamberParams::default();
-    p.fluid.yield_stress_pa = [1.0e9, 0.0, 0.0];
+    p.fluid.yield_stress_pa = vec![1.0e9, 0.0, 0.0];
     let mut m = TwoChamber::new(p.clone(), EffectSet::paper());
     let s = run(&mut m, &programme(1.0e-4, 2.0, 0.0, 0.5, 2000.0), None);
     // Least-squares slope of F against x.

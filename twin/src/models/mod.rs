@@ -25,6 +25,19 @@ pub fn quadratic_in_current(c: &[f64; 3], current_a: f64) -> f64 {
     (c[0] + c[1] * i + c[2] * i * i).max(0.0)
 }
 
+/// Most coefficients a law in current may have ([`polynomial_in_current`]): a quartic,
+/// which passes through five current levels (a rig's usual test matrix) exactly.
+pub const MAX_CURRENT_COEFFS: usize = 5;
+
+/// c0 + c1 |I| + c2 I² + c3 |I|³ + …, floored at 0: a law in current with as many
+/// coefficients as `c` holds (Horner's scheme). Three are the quadratic of Graczykowski &
+/// Pawłowski; `mrtwin fit` uses up to [`MAX_CURRENT_COEFFS`] when a record holds that
+/// many current levels.
+pub fn polynomial_in_current(c: &[f64], current_a: f64) -> f64 {
+    let i = current_a.abs();
+    c.iter().rev().fold(0.0, |acc, ck| acc * i + ck).max(0.0)
+}
+
 /// The models mrtwin knows. In parameter files and on the command line by
 /// [`ModelKind::name`]; an unknown name is an error listing the known ones.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]

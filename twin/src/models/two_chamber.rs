@@ -37,7 +37,7 @@ use crate::fluid::{Bingham, BodnerPartom, HerschelBulkley};
 use crate::gap::{GapLaw, SlitFlow, SlitGap};
 use crate::integrate::{trbdf2_adaptive, Matrix, NotConverged, StiffSystem, Tolerance, Vector};
 use crate::model::{substep_count, substeps, DamperInput, DamperModel, DamperOutput};
-use crate::models::quadratic_in_current;
+use crate::models::polynomial_in_current;
 
 /// The rod-force error, as a fraction of the yield force A1 Δp_y, below which the sub-step
 /// after an opening flow is taken by step doubling instead of in parts
@@ -70,10 +70,18 @@ pub enum FluidLaw {
 pub struct FluidParams {
     /// Constitutive law in the gap.
     pub law: FluidLaw,
-    /// Yield stress τ_y(I) = c0 + c1 |I| + c2 I² \[Pa, Pa/A, Pa/A²\] at the reference temperature.
-    pub yield_stress_pa: [f64; 3],
-    /// Plastic viscosity μ(I) (Herschel–Bulkley: consistency k(I)) = c0 + c1 |I| + c2 I².
-    pub viscosity_pa_s: [f64; 3],
+    /// Yield stress τ_y(I) = c0 + c1 |I| + c2 I² + … \[Pa, Pa/A, Pa/A², …\] at the reference
+    /// temperature: 1 to [`crate::models::MAX_CURRENT_COEFFS`] coefficients, a quadratic by
+    /// default ([`polynomial_in_current`]).
+    pub yield_stress_pa: Vec<f64>,
+    /// Plastic viscosity μ(I) (Herschel–Bulkley: consistency k(I)) = c0 + c1 |I| + c2 I² + …,
+    /// 1 to [`crate::models::MAX_CURRENT_COEFFS`] coefficients.
+    pub viscosity_pa_s: Vec<f64>,
+    /// Current above which the laws in current are held at their value there \[A\]: the
+    /// edge of the currents they were fitted on, beyond which a quartic may turn anywhere
+    /// (an MR fluid saturates rather). `mrtwin fit` sets it to the records' peak current
+    /// when it fits more than three coefficients. 0: no limit.
+    pub current_range_a: f64,
     /// Herschel–Bulkley flow index m \[-\].
     pub flow_index: f64,
     /// Relative fall of τ_y per kelvin above the reference temperature \[1/K\].
@@ -105,8 +113,9 @@ impl Default for FluidParams {
     fn default() -> Self {
         Self {
             law: FluidLaw::Bingham,
-            yield_stress_pa: [500.0, 45_000.0, -10_000.0],
-            viscosity_pa_s: [0.092, 0.5, -0.1],
+            yield_stress_pa: vec![500.0, 45_000.0, -10_000.0],
+            viscosity_pa_s: vec![0.092, 0.5, -0.1],
+            current_range_a: 0.0,
             flow_index: 0.8,
             yield_stress_temp_coeff_per_k: 0.005,
             viscosity_temp_coeff_per_k: 0.02,
@@ -123,10 +132,15 @@ impl FluidParams {
     /// law with its parameters there, and the pre-yield leak λ b h³/(12 μ L) beside it.
     pub fn flow_in(&self, gap: SlitGap, i: f64, t: f64) -> SlitFlow {
         let dt = t - self.reference_temperature_c;
-        let tau_y = quadratic_in_current(&self.yield_stress_pa, i)
+        let i_law = if self.current_range_a > 0.0 {
+            i.abs().min(self.current_range_a)
+        } else {
+            i
+        };
+        let tau_y = polynomial_in_current(&self.yield_stress_pa, i_law)
             * (1.0 - self.yield_stress_temp_coeff_per_k * dt).max(0.0);
         // μ(I, T) (Herschel–Bulkley: the consistency k(I, T)).
-        let mu = quadratic_in_current(&self.viscosity_pa_s, i).max(1e-6)
+        let mu = polynomial_in_current(&self.viscosity_pa_s, i_law).max(1e-6)
             * (-self.viscosity_temp_coeff_per_k * dt).exp();
         let law = match self.law {
             FluidLaw::Bingham => GapLaw::Bingham(Bingham {
