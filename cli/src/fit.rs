@@ -263,9 +263,12 @@ pub fn calibrate(
     ] {
         c.truncate(3);
     }
+    // Hold the coefficients past the quadratic that the records made free (a cubic has
+    // no `[4]`).
+    let (free, _) = free_parameters(config, current_levels(records))?;
     let mut hold = hold.to_vec();
     for k in BEYOND_QUADRATIC {
-        if !hold.iter().any(|h| h == k) {
+        if free.iter().any(|f| f.key() == k) && !hold.iter().any(|h| h == k) {
             hold.push(k.to_string());
         }
     }

@@ -524,6 +524,56 @@ fn the_fluids_yield_step_that_diagnose_carries_reaches_the_twin() {
     );
 }
 
+/// Four current levels make the laws in current cubics; a record whose yield stress falls
+/// between 0.25 and 0.5 A (20 → 12 kPa, not an MR fluid's law, made so the fitted cubic
+/// falls) gets quadratics instead, said in the report, and no range: the fallback holds
+/// only the coefficients the records made free (a cubic has no `[4]`).
+#[test]
+fn a_fitted_law_that_falls_with_current_falls_back_to_a_quadratic() {
+    let dir = TempDir::new("chain-falling-law");
+    let stand = dir.path("").join("stand.yaml");
+    std::fs::write(
+        &stand,
+        "mrtwin_stand:\n  ros__parameters:\n    model: two-chamber\n    effects: none\n    \
+         two_chamber:\n      fluid:\n        \
+         yield_stress_pa: [78000.0, -370666.7, 632000.0, -309333.3]\n",
+    )
+    .unwrap();
+    let rec = simulate(
+        &dir.path(""),
+        "falling.csv",
+        "none",
+        &["--params", &p(&stand), "--current", "0.25,0.5,0.75,1.0"],
+        8,
+    );
+    let (twin, js) = (
+        dir.path("").join("twin.yaml"),
+        dir.path("").join("fit.json"),
+    );
+    succeeded(
+        mrtwin(&["fit", &p(&rec), "--out", &p(&twin), "--json", &p(&js)]),
+        "fit",
+    );
+    let notes = read_json(&js)["identifiable"].clone();
+    assert!(
+        notes
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|n| n.as_str().unwrap().contains("fitted as quadratics instead")),
+        "{notes:#}"
+    );
+    let fluid = load(&twin).two_chamber.fluid;
+    assert_eq!(
+        fluid.yield_stress_pa.len(),
+        3,
+        "{:?}",
+        fluid.yield_stress_pa
+    );
+    assert_eq!(fluid.viscosity_pa_s.len(), 3, "{:?}", fluid.viscosity_pa_s);
+    assert_eq!(fluid.current_range_a, 0.0);
+}
+
 #[test]
 fn a_pre_yield_leak_in_the_record_is_tried_kept_and_recovered_by_the_fit() {
     let dir = TempDir::new("chain-leak");
