@@ -198,13 +198,13 @@ pub struct Calibrated {
     pub notes: Vec<String>,
 }
 
-/// The keys that make a law in current more than a quadratic (`[3]` and `[4]` of
-/// `yield_stress_pa` and `viscosity_pa_s`).
-const BEYOND_QUADRATIC: [&str; 4] = [
-    "two_chamber.fluid.yield_stress_pa[3]",
-    "two_chamber.fluid.yield_stress_pa[4]",
-    "two_chamber.fluid.viscosity_pa_s[3]",
-    "two_chamber.fluid.viscosity_pa_s[4]",
+/// The coefficients that make a law in current more than a quadratic: `[3]` and `[4]` of
+/// `yield_stress_pa` and `viscosity_pa_s`.
+const BEYOND_QUADRATIC: [ParamKey; 4] = [
+    ParamKey::YieldStress(3),
+    ParamKey::YieldStress(4),
+    ParamKey::Viscosity(3),
+    ParamKey::Viscosity(4),
 ];
 
 /// The first law in current of `fluid` (`yield_stress_pa`, then `viscosity_pa_s`) that
@@ -246,11 +246,18 @@ pub fn calibrate(
     hold: &[String],
 ) -> Result<Calibrated> {
     let c = calibrate_laws_as_given(config, records, blocks, hold)?;
+    // The coefficients past the quadratic that this fit moved (a cubic has no `[4]`).
+    let beyond: Vec<ParamKey> = c
+        .full
+        .fitted
+        .iter()
+        .map(|f| f.key)
+        .filter(|k| BEYOND_QUADRATIC.contains(k))
+        .collect();
     let fitted = c.full.applied_to(config);
     let fluid = &fitted.params.two_chamber.fluid;
-    let beyond_quadratic = fluid.yield_stress_pa.len() > 3 || fluid.viscosity_pa_s.len() > 3;
     let falling = match fluid.current_range_a {
-        peak if beyond_quadratic && peak > 0.0 => falling_law(fluid, peak),
+        peak if !beyond.is_empty() && peak > 0.0 => falling_law(fluid, peak),
         _ => None,
     };
     let Some((law, at)) = falling else {
@@ -263,27 +270,23 @@ pub fn calibrate(
     ] {
         c.truncate(3);
     }
-    // Hold the coefficients past the quadratic that the records made free (a cubic has
-    // no `[4]`).
-    let (free, _) = free_parameters(config, current_levels(records))?;
-    let mut hold = hold.to_vec();
-    for k in BEYOND_QUADRATIC {
-        if free.iter().any(|f| f.key() == k) && !hold.iter().any(|h| h == k) {
-            hold.push(k.to_string());
-        }
-    }
+    let added: Vec<String> = beyond.iter().map(|k| k.key()).collect();
+    let hold: Vec<String> = hold.iter().chain(&added).cloned().collect();
     let mut q = calibrate_laws_as_given(&quadratic, records, blocks, &hold)?;
-    q.notes.retain(|n| {
-        !BEYOND_QUADRATIC
-            .iter()
-            .any(|k| n.starts_with(&format!("{k} held")))
-    });
+    // The holds added here are the fallback's, not the user's: said once, below.
+    q.notes
+        .retain(|n| !added.iter().any(|k| *n == held_note(k)));
     q.notes.push(format!(
         "the laws in current were then fitted as quadratics instead: with {} \
          coefficients, two_chamber.fluid.{law} fell as the current rose (at {at:.3} A)",
         fluid.yield_stress_pa.len().max(fluid.viscosity_pa_s.len())
     ));
     Ok(q)
+}
+
+/// The note of a parameter held by `--hold`.
+fn held_note(key: &str) -> String {
+    format!("{key} held at its base value (--hold)")
 }
 
 /// [`calibrate`] with the laws in current as [`free_parameters`] gives them.
@@ -310,11 +313,11 @@ fn calibrate_laws_as_given(
             );
         }
         keys.retain(|k| !held(k));
-        notes.push(format!("{h} held at its base value (--hold)"));
+        notes.push(held_note(h));
     }
     // A law in current beyond a quadratic is held at the records' peak current.
     let mut config = config.clone();
-    if keys.contains(&ParamKey::YieldStress(3)) {
+    if keys.iter().any(|k| BEYOND_QUADRATIC.contains(k)) {
         let peak = records
             .iter()
             .flatten()

@@ -524,6 +524,40 @@ fn the_fluids_yield_step_that_diagnose_carries_reaches_the_twin() {
     );
 }
 
+/// A two-chamber record simulated with `fluid_line` in the stand's fluid section (plus
+/// `extra` flags to `simulate`), then `mrtwin fit` on it with its JSON report.
+struct FitSimulated {
+    rec: PathBuf,
+    twin: PathBuf,
+    report: serde_json::Value,
+}
+
+fn fit_simulated(dir: &Path, fluid_line: &str, extra: &[&str], seed: u64) -> FitSimulated {
+    let stand = dir.join("stand.yaml");
+    std::fs::write(
+        &stand,
+        format!(
+            "mrtwin_stand:\n  ros__parameters:\n    model: two-chamber\n    effects: none\n    \
+             two_chamber:\n      fluid:\n        {fluid_line}\n"
+        ),
+    )
+    .unwrap();
+    let stand = p(&stand);
+    let mut flags = vec!["--params", stand.as_str()];
+    flags.extend_from_slice(extra);
+    let rec = simulate(dir, "simulated.csv", "none", &flags, seed);
+    let (twin, js) = (dir.join("twin.yaml"), dir.join("fit.json"));
+    succeeded(
+        mrtwin(&["fit", &p(&rec), "--out", &p(&twin), "--json", &p(&js)]),
+        "fit",
+    );
+    FitSimulated {
+        rec,
+        twin,
+        report: read_json(&js),
+    }
+}
+
 /// Four current levels make the laws in current cubics; a record whose yield stress falls
 /// between 0.25 and 0.5 A (20 → 12 kPa, not an MR fluid's law, made so the fitted cubic
 /// falls) gets quadratics instead, said in the report, and no range: the fallback holds
@@ -531,30 +565,13 @@ fn the_fluids_yield_step_that_diagnose_carries_reaches_the_twin() {
 #[test]
 fn a_fitted_law_that_falls_with_current_falls_back_to_a_quadratic() {
     let dir = TempDir::new("chain-falling-law");
-    let stand = dir.path("").join("stand.yaml");
-    std::fs::write(
-        &stand,
-        "mrtwin_stand:\n  ros__parameters:\n    model: two-chamber\n    effects: none\n    \
-         two_chamber:\n      fluid:\n        \
-         yield_stress_pa: [78000.0, -370666.7, 632000.0, -309333.3]\n",
-    )
-    .unwrap();
-    let rec = simulate(
+    let fitted = fit_simulated(
         &dir.path(""),
-        "falling.csv",
-        "none",
-        &["--params", &p(&stand), "--current", "0.25,0.5,0.75,1.0"],
+        "yield_stress_pa: [78000.0, -370666.7, 632000.0, -309333.3]",
+        &["--current", "0.25,0.5,0.75,1.0"],
         8,
     );
-    let (twin, js) = (
-        dir.path("").join("twin.yaml"),
-        dir.path("").join("fit.json"),
-    );
-    succeeded(
-        mrtwin(&["fit", &p(&rec), "--out", &p(&twin), "--json", &p(&js)]),
-        "fit",
-    );
-    let notes = read_json(&js)["identifiable"].clone();
+    let (twin, notes) = (fitted.twin, fitted.report["identifiable"].clone());
     assert!(
         notes
             .as_array()
@@ -578,31 +595,8 @@ fn a_fitted_law_that_falls_with_current_falls_back_to_a_quadratic() {
 fn a_pre_yield_leak_in_the_record_is_tried_kept_and_recovered_by_the_fit() {
     let dir = TempDir::new("chain-leak");
     let truth = 0.04;
-    let stand = dir.path("").join("stand.yaml");
-    std::fs::write(
-        &stand,
-        format!(
-            "mrtwin_stand:\n  ros__parameters:\n    model: two-chamber\n    effects: none\n    \
-             two_chamber:\n      fluid:\n        pre_yield_leak: {truth}\n"
-        ),
-    )
-    .unwrap();
-    let rec = simulate(
-        &dir.path(""),
-        "leak.csv",
-        "none",
-        &["--params", &p(&stand)],
-        6,
-    );
-    let (twin, js) = (
-        dir.path("").join("twin.yaml"),
-        dir.path("").join("fit.json"),
-    );
-    succeeded(
-        mrtwin(&["fit", &p(&rec), "--out", &p(&twin), "--json", &p(&js)]),
-        "fit",
-    );
-    let report = read_json(&js);
+    let FitSimulated { rec, twin, report } =
+        fit_simulated(&dir.path(""), &format!("pre_yield_leak: {truth}"), &[], 6);
     let leak = fitted_parameter(&report, "two_chamber.fluid.pre_yield_leak")
         .unwrap_or_else(|| panic!("no leak fitted: {:#}", report["identifiable"]));
     let (value, se) = (

@@ -21,8 +21,7 @@ pub use two_chamber::{FluidLaw, FluidParams, TwoChamber, TwoChamberParams};
 /// c0 + c1 |I| + c2 I², floored at 0: how the models' yield levels and viscosities grow
 /// with coil current (quadratic, as Graczykowski & Pawłowski assume).
 pub fn quadratic_in_current(c: &[f64; 3], current_a: f64) -> f64 {
-    let i = current_a.abs();
-    (c[0] + c[1] * i + c[2] * i * i).max(0.0)
+    polynomial_in_current(c, current_a)
 }
 
 /// Most coefficients a law in current may have ([`polynomial_in_current`]): a quartic,
@@ -30,12 +29,17 @@ pub fn quadratic_in_current(c: &[f64; 3], current_a: f64) -> f64 {
 pub const MAX_CURRENT_COEFFS: usize = 5;
 
 /// c0 + c1 |I| + c2 I² + c3 |I|³ + …, floored at 0: a law in current with as many
-/// coefficients as `c` holds (Horner's scheme). Three are the quadratic of Graczykowski &
-/// Pawłowski; `mrtwin fit` uses up to [`MAX_CURRENT_COEFFS`] when a record holds that
-/// many current levels.
+/// coefficients as `c` holds. Three are the quadratic of Graczykowski & Pawłowski;
+/// `mrtwin fit` uses up to [`MAX_CURRENT_COEFFS`] when a record holds that many current
+/// levels. Summed term by term from c0, each term ck·|I|·…·|I|: for three coefficients
+/// exactly the rounding of `c0 + c1 i + c2 i i`.
 pub fn polynomial_in_current(c: &[f64], current_a: f64) -> f64 {
     let i = current_a.abs();
-    c.iter().rev().fold(0.0, |acc, ck| acc * i + ck).max(0.0)
+    c.iter()
+        .enumerate()
+        .map(|(k, ck)| (0..k).fold(*ck, |term, _| term * i))
+        .fold(0.0, |sum, term| sum + term)
+        .max(0.0)
 }
 
 /// The models mrtwin knows. In parameter files and on the command line by
