@@ -90,6 +90,16 @@ pub struct Evidence {
     /// Held-out RMS after \[N\].
     #[serde(rename = "holdout_rmse_after_N")]
     pub holdout_rmse_after_n: f64,
+    /// The typical held-out block's RMS before adding the effect \[N\]: the root of the
+    /// geometric mean of the blocks' mean squares, each block one vote whatever its misfit.
+    #[serde(rename = "holdout_typical_block_rmse_before_N")]
+    pub holdout_typical_block_rmse_before_n: f64,
+    /// The same after \[N\].
+    #[serde(rename = "holdout_typical_block_rmse_after_N")]
+    pub holdout_typical_block_rmse_after_n: f64,
+    /// The largest ratio of a held-out block's mean square after to before: how much worse
+    /// the candidate makes the block it hurts most (below 1: it helps every block).
+    pub holdout_worst_block_ms_ratio: f64,
     /// Change of the information criterion with the effective sample size (negative: better).
     pub delta_bic: f64,
     /// Effective sample size used in the criterion and the intervals.
@@ -419,16 +429,31 @@ pub fn render_markdown(r: &Report) -> String {
             .iter()
             .filter(|b| b.rmse_after_n < b.rmse_before_n)
             .count();
+        // Accepted on the typical block's gain, the pooled RMS having risen.
+        let typical = if e.holdout_rmse_after_n >= e.holdout_rmse_before_n {
+            format!(
+                "; pooled, the blocks it fits worse outweigh the rest: the typical held-out \
+                 block {:.2} → {:.2} N",
+                e.holdout_typical_block_rmse_before_n, e.holdout_typical_block_rmse_after_n
+            )
+        } else {
+            String::new()
+        };
         let _ = writeln!(
             s,
-            "- **{}** — {}. Parameters: {}. Held-out RMS {:.2} → {:.2} N ({:.1} % lower; \
-             better in {} of {} held-out blocks); {}.",
+            "- **{}** — {}. Parameters: {}. Held-out RMS {:.2} → {:.2} N ({:.1} % {}; \
+             better in {} of {} held-out blocks{typical}); {}.",
             f.effect,
             f.explanation,
             fmt_params(&f.parameters),
             e.holdout_rmse_before_n,
             e.holdout_rmse_after_n,
-            100.0 * (1.0 - e.holdout_rmse_after_n / e.holdout_rmse_before_n),
+            100.0 * (1.0 - e.holdout_rmse_after_n / e.holdout_rmse_before_n).abs(),
+            if typical.is_empty() {
+                "lower"
+            } else {
+                "higher"
+            },
             better,
             f.block_gains.len(),
             why

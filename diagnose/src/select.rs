@@ -420,6 +420,28 @@ fn holdout_block_sse(d: &Prepared, force: &[f64]) -> Vec<f64> {
     holdout_blocks(d, force).into_iter().map(|x| x.3).collect()
 }
 
+/// The typical held-out block's RMS before and after (the root of the geometric mean of
+/// the held-out blocks' weighted mean squares), and the largest ratio of a block's mean
+/// square after to before. Pooled, one block the model misfits badly (a current the fitting
+/// blocks barely saw) outweighs all the others; here each block counts once.
+fn typical_block_rmse(d: &Prepared, before: &[f64], after: &[f64]) -> (f64, f64, f64) {
+    let ms = |b: &(f64, f64, usize, f64, f64)| (b.3 / b.4.max(1e-300)).max(1e-300);
+    let pairs: Vec<(f64, f64)> = holdout_blocks(d, before)
+        .iter()
+        .zip(&holdout_blocks(d, after))
+        .map(|(b, a)| (ms(b), ms(a)))
+        .collect();
+    if pairs.is_empty() {
+        // No held-out block: no gain to read (and no NaN in the JSON).
+        return (0.0, 0.0, 1.0);
+    }
+    let n = pairs.len() as f64;
+    let typical =
+        |k: fn(&(f64, f64)) -> f64| (0.5 * pairs.iter().map(|p| k(p).ln()).sum::<f64>() / n).exp();
+    let worst = pairs.iter().map(|p| p.1 / p.0).fold(0.0, f64::max);
+    (typical(|p| p.0), typical(|p| p.1), worst)
+}
+
 /// Held-out RMS per held-out block, before and after.
 fn block_gains(d: &Prepared, before: &[f64], after: &[f64]) -> Vec<BlockGain> {
     holdout_blocks(d, before)
@@ -684,6 +706,8 @@ fn judge(
         &holdout_block_sse(d, &current.force),
         &holdout_block_sse(d, &cand.force),
     );
+    let (typical_before, typical_after, worst_ratio) =
+        typical_block_rmse(d, &current.force, &cand.force);
     let n_eff = stats::effective_n(current.train_n, current.rho1);
     let dp = (cand.layout.len() - current.layout.len()) as f64;
     let dbic = n_eff * (cand.train_sse / current.train_sse).ln() + dp * n_eff.ln();
@@ -766,6 +790,9 @@ fn judge(
         evidence: Evidence {
             holdout_rmse_before_n: before,
             holdout_rmse_after_n: after,
+            holdout_typical_block_rmse_before_n: typical_before,
+            holdout_typical_block_rmse_after_n: typical_after,
+            holdout_worst_block_ms_ratio: worst_ratio,
             delta_bic: dbic,
             effective_samples: n_eff,
             holdout_z: z,
@@ -933,7 +960,16 @@ fn round_verdicts(
             j.evidence.holdout_rmse_before_n,
             j.evidence.holdout_rmse_after_n,
         );
-        j.passed[2] && j.passed[3] && a < b && b * b - a * a >= cal.min_holdout_gain_noise * noise2
+        let e = &j.evidence;
+        let (tb, ta) = (
+            e.holdout_typical_block_rmse_before_n,
+            e.holdout_typical_block_rmse_after_n,
+        );
+        let gain = |b: f64, a: f64| a < b && b * b - a * a >= cal.min_holdout_gain_noise * noise2;
+        // Pooled, or in the typical block with no block hurt more than that block gains
+        // (a broad gain that one badly misfitted block outweighs in the pooled sum).
+        let broad = gain(tb, ta) && e.holdout_worst_block_ms_ratio <= (tb / ta).powi(2);
+        j.passed[2] && j.passed[3] && (gain(b, a) || broad)
     };
     // A friction whose step the fluid's yield-scaled step fits better is still calibrated,
     // to tell whether that step belongs in the fluid's shape.
