@@ -291,6 +291,57 @@ fn a_gain_in_most_held_out_blocks_counts_though_pooled_it_is_outweighed() {
     eprintln!("stiffness {k:.3} N/mm {ci:?}, generator {truth:.3}");
 }
 
+/// A coil driver's lag far from the best unfitted start (proving-ground seed 287: a driver
+/// with rails, 93 ms and 9 ms poles, effective time constant 27 ms, beside a gas spring and
+/// a thermal drift, 1 kHz random strokes under a random current). From the best unfitted of
+/// the three starts, 3 ms, the lag ended at 2.8 ms and explained nothing, and nothing was
+/// reported. Each start is now fitted part of the way and the best fitted one carried on
+/// (diagnose::select::fit_candidate_limited): the lag is found near the generator's, and
+/// nothing that was not hidden.
+#[test]
+fn a_field_lag_is_fitted_from_the_start_that_fits_best() {
+    let (m, d) = generate_and_diagnose(287);
+    assert_eq!(
+        hidden_effects(&m),
+        ["field_lag", "gas_spring", "thermal_softening"],
+        "the scenario changed"
+    );
+    let found = found_effects(&d);
+    assert!(found.contains(&"field_lag"), "{}", d["trials"]);
+    assert!(
+        found.iter().all(|f| hidden_effects(&m).contains(f)),
+        "a false finding: {found:?}"
+    );
+    let truth = m["effects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["effect"] == "field_lag")
+        .unwrap()["parameters"]["effective_tau_s"]
+        .as_f64()
+        .unwrap()
+        * 1e3;
+    let (tau, ci) = finding_parameter(&d, "field_lag", "field_time_constant");
+    eprintln!("lag {tau:.2} ms {ci:?}, generator's effective {truth:.2} ms");
+    // The generator's lag is second order with rails; its effective time constant is an
+    // approximation, which the interval (widened by the halves' spread) must hold.
+    assert!(
+        (tau / truth - 1.0).abs() < 0.5 && ci[0] <= truth && truth <= ci[1],
+        "lag {tau:.2} ms {ci:?} against the generator's effective {truth:.2} ms"
+    );
+    let lag = d["findings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|f| f["effect"] == "field_lag")
+        .unwrap();
+    let (b, a) = (
+        lag["evidence"]["holdout_rmse_before_N"].as_f64().unwrap(),
+        lag["evidence"]["holdout_rmse_after_N"].as_f64().unwrap(),
+    );
+    assert!(a < 0.8 * b, "held-out {b:.1} -> {a:.1} N");
+}
+
 /// A bi-viscous null (proving-ground seed 200: viscosity ratio 265, a random current)
 /// whose steep force rise at low speed a constant seal-friction step of 2.1 kN fitted, with
 /// no presliding displacement resolved, better than the same step scaled by the yield
