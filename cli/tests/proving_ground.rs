@@ -312,12 +312,7 @@ fn a_field_lag_is_fitted_from_the_start_that_fits_best() {
         found.iter().all(|f| hidden_effects(&m).contains(f)),
         "a false finding: {found:?}"
     );
-    let truth = m["effects"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|e| e["effect"] == "field_lag")
-        .unwrap()["parameters"]["effective_tau_s"]
+    let truth = entry_of(&m["effects"], "field_lag")["parameters"]["effective_tau_s"]
         .as_f64()
         .unwrap()
         * 1e3;
@@ -329,12 +324,7 @@ fn a_field_lag_is_fitted_from_the_start_that_fits_best() {
         (tau / truth - 1.0).abs() < 0.5 && ci[0] <= truth && truth <= ci[1],
         "lag {tau:.2} ms {ci:?} against the generator's effective {truth:.2} ms"
     );
-    let lag = d["findings"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|f| f["effect"] == "field_lag")
-        .unwrap();
+    let lag = entry_of(&d["findings"], "field_lag");
     let (b, a) = (
         lag["evidence"]["holdout_rmse_before_N"].as_f64().unwrap(),
         lag["evidence"]["holdout_rmse_after_N"].as_f64().unwrap(),
@@ -439,15 +429,19 @@ fn sorted_strings<'a>(values: impl Iterator<Item = &'a serde_json::Value>) -> Ve
     v
 }
 
-/// A fitted parameter of a finding: its value and 95 % interval.
-fn finding_parameter(d: &serde_json::Value, effect: &str, name: &str) -> (f64, [f64; 2]) {
-    let f = d["findings"]
-        .as_array()
+/// The entry of `effect` in a list of entries keyed by `"effect"` (a diagnosis's
+/// `findings`, a scenario's `effects`).
+fn entry_of<'a>(list: &'a serde_json::Value, effect: &str) -> &'a serde_json::Value {
+    list.as_array()
         .unwrap()
         .iter()
         .find(|f| f["effect"] == effect)
-        .unwrap_or_else(|| panic!("no {effect} finding: {}", d["findings"]));
-    let p = &f["parameters"][name];
+        .unwrap_or_else(|| panic!("no {effect} in {list}"))
+}
+
+/// A fitted parameter of a finding: its value and 95 % interval.
+fn finding_parameter(d: &serde_json::Value, effect: &str, name: &str) -> (f64, [f64; 2]) {
+    let p = &entry_of(&d["findings"], effect)["parameters"][name];
     let ci = p["ci95"].as_array().unwrap();
     (
         p["value"].as_f64().unwrap(),
@@ -478,12 +472,7 @@ fn a_gas_spring_and_a_mass_that_cancel_alone_are_found_as_a_pair() {
         .any(|t| t["effect"] == "gas_spring+fluid_inertia" && t["accepted"] == true);
     assert!(pair_accepted, "the pair was not what was accepted");
     let truth = |effect: &str, key: &str| {
-        m["effects"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|e| e["effect"] == effect)
-            .unwrap()["parameters"][key]
+        entry_of(&m["effects"], effect)["parameters"][key]
             .as_f64()
             .unwrap()
     };
@@ -595,24 +584,14 @@ fn the_yield_estimators_sigma_against_the_independent_truth() {
 #[test]
 fn a_lag_whose_halves_disagree_gets_an_interval_that_holds_the_generated_value() {
     let (m, d) = generate_and_diagnose(116);
-    let lag = m["effects"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|e| e["effect"] == "field_lag")
-        .expect("the scenario hides a field lag");
+    let lag = entry_of(&m["effects"], "field_lag");
     assert_eq!(
         lag["parameters"]["kind"], "first_order",
         "the scenario changed"
     );
     let truth_ms = lag["parameters"]["effective_tau_s"].as_f64().unwrap() * 1e3;
     let (v, ci) = finding_parameter(&d, "field_lag", "field_time_constant");
-    let p = &d["findings"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|f| f["effect"] == "field_lag")
-        .unwrap()["parameters"]["field_time_constant"];
+    let p = &entry_of(&d["findings"], "field_lag")["parameters"]["field_time_constant"];
     let fit: Vec<f64> = p["ci95_fit"]
         .as_array()
         .unwrap()

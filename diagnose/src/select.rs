@@ -415,20 +415,24 @@ fn holdout_blocks(d: &Prepared, force: &[f64]) -> Vec<(f64, f64, usize, f64, f64
     s.into_iter().filter(|x| x.2 > 0).collect()
 }
 
-/// Weighted sum of squared held-out residuals per held-out block.
-fn holdout_block_sse(d: &Prepared, force: &[f64]) -> Vec<f64> {
-    holdout_blocks(d, force).into_iter().map(|x| x.3).collect()
+/// Weighted sum of squared held-out residuals of each block of [`holdout_blocks`].
+fn block_sse(blocks: &[(f64, f64, usize, f64, f64)]) -> Vec<f64> {
+    blocks.iter().map(|x| x.3).collect()
 }
 
 /// The typical held-out block's RMS before and after (the root of the geometric mean of
 /// the held-out blocks' weighted mean squares), and the largest ratio of a block's mean
-/// square after to before. Pooled, one block the model misfits badly (a current the fitting
-/// blocks barely saw) outweighs all the others; here each block counts once.
-fn typical_block_rmse(d: &Prepared, before: &[f64], after: &[f64]) -> (f64, f64, f64) {
+/// square after to before, from the [`holdout_blocks`] of the two models. Pooled, one block
+/// the model misfits badly (a current the fitting blocks barely saw) outweighs all the
+/// others; here each block counts once.
+fn typical_block_rmse(
+    before: &[(f64, f64, usize, f64, f64)],
+    after: &[(f64, f64, usize, f64, f64)],
+) -> (f64, f64, f64) {
     let ms = |b: &(f64, f64, usize, f64, f64)| (b.3 / b.4.max(1e-300)).max(1e-300);
-    let pairs: Vec<(f64, f64)> = holdout_blocks(d, before)
+    let pairs: Vec<(f64, f64)> = before
         .iter()
-        .zip(&holdout_blocks(d, after))
+        .zip(after)
         .map(|(b, a)| (ms(b), ms(a)))
         .collect();
     if pairs.is_empty() {
@@ -596,7 +600,7 @@ pub fn fit_candidate_limited(d: &Prepared, current: &Fit, e: Effect, max_iter: u
             })
             .min_by(|a, b| a.train_sse.total_cmp(&b.train_sse))
             .expect("three starts");
-        return crate::model::fit_limited(d, &lay, &best.theta, max_iter - screen.min(max_iter));
+        return crate::model::fit_limited(d, &lay, &best.theta, max_iter.saturating_sub(screen));
     }
     let mut best: Option<(f64, Vec<f64>)> = None;
     for s in starts {
@@ -718,12 +722,13 @@ fn judge(
 ) -> Judged {
     let before = current.holdout_rmse(d);
     let after = cand.holdout_rmse(d);
-    let (_, z) = stats::paired_z(
-        &holdout_block_sse(d, &current.force),
-        &holdout_block_sse(d, &cand.force),
+    let (blocks_before, blocks_after) = (
+        holdout_blocks(d, &current.force),
+        holdout_blocks(d, &cand.force),
     );
+    let (_, z) = stats::paired_z(&block_sse(&blocks_before), &block_sse(&blocks_after));
     let (typical_before, typical_after, worst_ratio) =
-        typical_block_rmse(d, &current.force, &cand.force);
+        typical_block_rmse(&blocks_before, &blocks_after);
     let n_eff = stats::effective_n(current.train_n, current.rho1);
     let dp = (cand.layout.len() - current.layout.len()) as f64;
     let dbic = n_eff * (cand.train_sse / current.train_sse).ln() + dp * n_eff.ln();
