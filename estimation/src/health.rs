@@ -688,8 +688,10 @@ fn widened(e: &Tau0Estimate) -> String {
     let stat2 = e.tau0_std_pa.powi(2) - e.model_std_pa.powi(2);
     if e.model_std_pa > 0.0 && e.model_std_pa.powi(2) >= stat2 {
         format!(
-            "; σ widened for model error (structure left in the residual, and the yield \
-             force's spread between near-yield laws): ±{:.1} kPa of it",
+            "; σ widened for model error (structure left in the residual, the yield \
+             force's spread between near-yield laws, and a current-independent friction \
+             the fit reads as yield, up to the curve's zero-current intercept): ±{:.1} kPa \
+             of it",
             e.model_std_pa / 1e3
         )
     } else {

@@ -124,6 +124,15 @@ pub struct EstimatorConfig {
     /// law, and the intercept is an extrapolation to v = 0 that the residual cannot
     /// check. Default 1 (the whole spread; 0.5 and 1 measured in BENCHMARKS.md).
     pub model_form_share: f64,
+    /// With `widen_for_model_error`: the share of the τ0 curve's zero-current intercept
+    /// taken as a further model-error σ at every current. A current-independent force in
+    /// step with sgn v — a seal's Coulomb friction — adds the same yield force at every
+    /// current, and no regression on these samples can split it from the fluid's yield:
+    /// τ0 reads high by F_c/(2 L A1/h), anywhere between 0 and what the curve leaves at
+    /// zero current (the line through its two lowest points extrapolated to I = 0, at most
+    /// τ0 at the lowest; with one current, all of its τ0). With 0.5 the 2σ band reaches
+    /// down by that whole amount. 0: off. Default 0.5 (docs/estimation.md).
+    pub common_offset_share: f64,
 }
 
 impl Default for EstimatorConfig {
@@ -147,6 +156,7 @@ impl Default for EstimatorConfig {
             identified_max_std_ratio: 0.25,
             widen_for_model_error: true,
             model_form_share: 1.0,
+            common_offset_share: 0.5,
         }
     }
 }
@@ -920,6 +930,9 @@ impl YieldEstimator {
             &mut self.blocks,
             &mut self.curve,
         );
+        if self.cfg.widen_for_model_error {
+            widen_for_common_offset(&mut self.curve, self.cfg.common_offset_share);
+        }
     }
 
     /// τ0 at this current, interpolated linearly along the physical curve ([`Self::curve`])
@@ -1136,6 +1149,35 @@ fn physical_curve_into(
     }
 }
 
+/// Adds `share` × the curve's zero-current intercept in quadrature to every point's σ and
+/// model-error part ([`EstimatorConfig::common_offset_share`]): the bound on a
+/// current-independent force (a seal's friction) that the regression reads as yield. The
+/// intercept is the line through the two lowest points extrapolated to I = 0, held between
+/// 0 and τ0 at the lowest point (the fluid's yield falls toward its small off-state value
+/// as the field goes; what is left at zero current is the seal's friction plus that
+/// off-state yield). With one point, all of its τ0.
+fn widen_for_common_offset(curve: &mut [Tau0Estimate], share: f64) {
+    let Some(&first) = curve.first() else {
+        return;
+    };
+    let lowest = first.tau0_pa.max(0.0);
+    let intercept = match curve.get(1) {
+        Some(b) if b.current_a > first.current_a => {
+            let slope = (b.tau0_pa - first.tau0_pa) / (b.current_a - first.current_a);
+            (first.tau0_pa - first.current_a * slope).clamp(0.0, lowest)
+        }
+        _ => lowest,
+    };
+    let offset = share * intercept;
+    if offset <= 0.0 {
+        return;
+    }
+    for e in curve.iter_mut() {
+        e.tau0_std_pa = e.tau0_std_pa.hypot(offset);
+        e.model_std_pa = e.model_std_pa.hypot(offset);
+    }
+}
+
 /// The offline counterpart of the estimator: ordinary least squares of the same model
 /// over every post-yield, finite sample of a record at one current (the same pre-yield
 /// velocity and stroke gates; no forgetting, no excitation gate), with the standard error
@@ -1268,6 +1310,99 @@ mod tests {
             "right {right:?}\nwrong {wrong:?}: bias {:.1}σ",
             bias / wrong.tau0_std_pa
         );
+    }
+
+    /// A seal's Coulomb friction (150 N, current-independent) on a damper held at 0.2 A
+    /// and at 1 A, whose fluid yields 30 kPa per ampere (none at zero field): the
+    /// regression reads it as yield at both currents, 4.1 kPa high (F_c / 0.0363 m²),
+    /// far outside its own σ. The common-offset part, half the curve's zero-current
+    /// intercept (here the friction itself), brings the truth inside 2σ at both; without
+    /// friction the intercept is near zero and σ stays as it was.
+    #[test]
+    fn a_seal_friction_read_as_yield_is_inside_the_band_through_the_zero_current_intercept() {
+        let run = |cfg: EstimatorConfig, friction_n: f64| {
+            let mut est = YieldEstimator::new(cfg, 0.0363);
+            let mut state: u64 = 11;
+            for j in 0..20_000 {
+                let t = j as f64 * 1e-3;
+                let current_a = if (j / 5000) % 2 == 0 { 0.2 } else { 1.0 };
+                let w = 2.0 * std::f64::consts::PI * 2.0;
+                let (x, v) = (0.01 * (w * t).sin(), 0.01 * w * (w * t).cos());
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                let noise = ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 5.0 * 12f64.sqrt();
+                let yield_n = 0.0363 * 30e3 * current_a;
+                let law = (yield_n + friction_n) * v.signum() + 2000.0 * v + 500.0 * x;
+                est.update(&EstimatorSample {
+                    time_s: t,
+                    displacement_m: x,
+                    velocity_m_s: v,
+                    force_n: law + noise,
+                    current_a,
+                });
+            }
+            [0.2, 1.0].map(|i| {
+                let e = est.at_current(i).expect("both currents identified");
+                (e, (e.tau0_pa - 30e3 * i) / e.tau0_std_pa)
+            })
+        };
+        let off = EstimatorConfig {
+            common_offset_share: 0.0,
+            ..Default::default()
+        };
+        for (e, z) in run(off.clone(), 150.0) {
+            assert!(z > 3.0, "without the common offset: {e:?}, z {z}");
+        }
+        for (e, z) in run(EstimatorConfig::default(), 150.0) {
+            assert!(
+                (e.tau0_pa - 30e3 * e.current_a - 150.0 / 0.0363).abs() < 400.0,
+                "{e:?}"
+            );
+            assert!(z > 0.0 && z <= 2.05, "with it: {e:?}, z {z}");
+            assert!(e.model_std_pa > 1.8e3, "{e:?}");
+        }
+        let clean = run(EstimatorConfig::default(), 0.0);
+        let plain = run(off, 0.0);
+        for ((e, z), (p, _)) in clean.iter().zip(&plain) {
+            assert!(z.abs() < 2.0, "{e:?}");
+            assert!(
+                e.tau0_std_pa < 1.5 * p.tau0_std_pa + 100.0,
+                "{e:?} against {p:?}"
+            );
+        }
+    }
+
+    /// The common-offset bound from the curve alone: the line through the two lowest
+    /// points at I = 0, held between 0 and the lowest τ0; one point gives its whole τ0.
+    #[test]
+    fn the_common_offset_is_the_curve_s_zero_current_intercept_held_to_its_lowest_point() {
+        let widened = |points: &[(f64, f64)]| {
+            let mut c: Vec<_> = points
+                .iter()
+                .map(|&(current_a, tau0_pa)| Tau0Estimate {
+                    current_a,
+                    tau0_pa,
+                    tau0_std_pa: 100.0,
+                    model_std_pa: 0.0,
+                })
+                .collect();
+            widen_for_common_offset(&mut c, 0.5);
+            c.iter().map(|p| p.tau0_std_pa).collect::<Vec<_>>()
+        };
+        // Intercept 1 kPa: ±0.5 kPa in quadrature.
+        let w = widened(&[(0.2, 3e3), (1.0, 11e3)]);
+        assert!(
+            w.iter().all(|s| (s - 100f64.hypot(500.0)).abs() < 1e-6),
+            "{w:?}"
+        );
+        // Through the origin, or below it: nothing added.
+        assert_eq!(widened(&[(0.2, 2e3), (1.0, 10e3)]), vec![100.0; 2]);
+        assert_eq!(widened(&[(0.5, 1e3), (1.0, 10e3)]), vec![100.0; 2]);
+        // A flat curve: the whole lowest τ0. One point: its τ0.
+        let flat = widened(&[(0.5, 8e3), (1.0, 8e3)]);
+        assert!((flat[0] - 100f64.hypot(4e3)).abs() < 1e-6, "{flat:?}");
+        assert!((widened(&[(1.0, 6e3)])[0] - 100f64.hypot(3e3)).abs() < 1e-6);
     }
 
     /// The model-form part (issue 13) where the residual shows little: on a plain Bingham

@@ -258,6 +258,10 @@ impl TwinNodeParams {
             "estimator.settings.model_form_share",
             self.estimator.settings.model_form_share,
         )?;
+        non_negative(
+            "estimator.settings.common_offset_share",
+            self.estimator.settings.common_offset_share,
+        )?;
         if self.conditioning.stuck_samples < 2 {
             return Err(InvalidParam {
                 key: "conditioning.stuck_samples",
