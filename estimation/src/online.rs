@@ -1257,6 +1257,18 @@ mod tests {
         assert!(force_per_pa(ModelKind::Bingham, &params).is_none());
     }
 
+    /// Sample `j` of a 10 mm, 2 Hz stroke at 1 kHz: (t, x, v) and uniform pseudo-random
+    /// noise of 5 N RMS (xorshift on `state`).
+    fn stroke_with_noise(j: usize, state: &mut u64) -> (f64, f64, f64, f64) {
+        let t = j as f64 * 1e-3;
+        let w = 2.0 * std::f64::consts::PI * 2.0;
+        *state ^= *state << 13;
+        *state ^= *state >> 7;
+        *state ^= *state << 17;
+        let noise = ((*state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 5.0 * 12f64.sqrt();
+        (t, 0.01 * (w * t).sin(), 0.01 * w * (w * t).cos(), noise)
+    }
+
     /// 10 s of a 10 mm, 2 Hz stroke at 1 kHz and 1 A with 5 N of pseudo-random noise; the
     /// force is the regression's own law plus `extra(v)`. Returns the law's raw point at
     /// 1 A (before the published curve leaves out what is not identified).
@@ -1264,14 +1276,7 @@ mod tests {
         let mut est = YieldEstimator::new(cfg, 0.0363);
         let mut state: u64 = 7;
         for j in 0..10_000 {
-            let t = j as f64 * 1e-3;
-            let w = 2.0 * std::f64::consts::PI * 2.0;
-            let (x, v) = (0.01 * (w * t).sin(), 0.01 * w * (w * t).cos());
-            // Uniform noise of 5 N RMS (xorshift).
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            let noise = ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 5.0 * 12f64.sqrt();
+            let (t, x, v, noise) = stroke_with_noise(j, &mut state);
             let law = 1000.0 * v.signum() + 2000.0 * v + 30.0 + 500.0 * x;
             est.update(&EstimatorSample {
                 time_s: t,
@@ -1324,14 +1329,8 @@ mod tests {
             let mut est = YieldEstimator::new(cfg, 0.0363);
             let mut state: u64 = 11;
             for j in 0..20_000 {
-                let t = j as f64 * 1e-3;
+                let (t, x, v, noise) = stroke_with_noise(j, &mut state);
                 let current_a = if (j / 5000) % 2 == 0 { 0.2 } else { 1.0 };
-                let w = 2.0 * std::f64::consts::PI * 2.0;
-                let (x, v) = (0.01 * (w * t).sin(), 0.01 * w * (w * t).cos());
-                state ^= state << 13;
-                state ^= state >> 7;
-                state ^= state << 17;
-                let noise = ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 5.0 * 12f64.sqrt();
                 let yield_n = 0.0363 * 30e3 * current_a;
                 let law = (yield_n + friction_n) * v.signum() + 2000.0 * v + 500.0 * x;
                 est.update(&EstimatorSample {
