@@ -130,8 +130,9 @@ pub struct EstimatorConfig {
     /// current, and no regression on these samples can split it from the fluid's yield:
     /// τ0 reads high by F_c/(2 L A1/h), anywhere between 0 and what the curve leaves at
     /// zero current (the line through its two lowest points extrapolated to I = 0, at most
-    /// τ0 at the lowest; with one current, all of its τ0). With 0.5 the 2σ band reaches
-    /// down by that whole amount. 0: off. Default 0.5 (docs/estimation.md).
+    /// τ0 at the lowest; nothing while only one current has been seen, where the bound
+    /// would be all of τ0). With 0.5 the 2σ band reaches down by that whole amount.
+    /// 0: off. Default 0.5 (docs/estimation.md).
     pub common_offset_share: f64,
 }
 
@@ -1155,7 +1156,7 @@ fn physical_curve_into(
 /// intercept is the line through the two lowest points extrapolated to I = 0, held between
 /// 0 and τ0 at the lowest point (the fluid's yield falls toward its small off-state value
 /// as the field goes; what is left at zero current is the seal's friction plus that
-/// off-state yield). With one point, all of its τ0.
+/// off-state yield). With one point there is no line and nothing is added.
 fn widen_for_common_offset(curve: &mut [Tau0Estimate], share: f64) {
     let Some(&first) = curve.first() else {
         return;
@@ -1166,7 +1167,9 @@ fn widen_for_common_offset(curve: &mut [Tau0Estimate], share: f64) {
             let slope = (b.tau0_pa - first.tau0_pa) / (b.current_a - first.current_a);
             (first.tau0_pa - first.current_a * slope).clamp(0.0, lowest)
         }
-        _ => lowest,
+        // One current: no line, and the data leave the split wholly open (the bound
+        // would be all of τ0); nothing is added until a second current is seen.
+        _ => 0.0,
     };
     let offset = share * intercept;
     if offset <= 0.0 {
@@ -1373,7 +1376,7 @@ mod tests {
     }
 
     /// The common-offset bound from the curve alone: the line through the two lowest
-    /// points at I = 0, held between 0 and the lowest τ0; one point gives its whole τ0.
+    /// points at I = 0, held between 0 and the lowest τ0; one point gives nothing.
     #[test]
     fn the_common_offset_is_the_curve_s_zero_current_intercept_held_to_its_lowest_point() {
         let widened = |points: &[(f64, f64)]| {
@@ -1398,10 +1401,10 @@ mod tests {
         // Through the origin, or below it: nothing added.
         assert_eq!(widened(&[(0.2, 2e3), (1.0, 10e3)]), vec![100.0; 2]);
         assert_eq!(widened(&[(0.5, 1e3), (1.0, 10e3)]), vec![100.0; 2]);
-        // A flat curve: the whole lowest τ0. One point: its τ0.
+        // A flat curve: the whole lowest τ0. One point: no line, nothing added.
         let flat = widened(&[(0.5, 8e3), (1.0, 8e3)]);
         assert!((flat[0] - 100f64.hypot(4e3)).abs() < 1e-6, "{flat:?}");
-        assert!((widened(&[(1.0, 6e3)])[0] - 100f64.hypot(3e3)).abs() < 1e-6);
+        assert_eq!(widened(&[(1.0, 6e3)]), vec![100.0]);
     }
 
     /// The model-form part (issue 13) where the residual shows little: on a plain Bingham
