@@ -968,7 +968,8 @@ impl YieldEstimator {
 
     /// The law's own estimates at the currents its samples were taken at (one point per
     /// ready knot, at that knot's hat-weighted mean current), ascending: the regression's
-    /// numbers, before [`Self::curve`] makes them physical.
+    /// numbers, before [`Self::curve`] makes them physical (and adds the common-offset
+    /// part of σ, which belongs to the curve, not to a knot).
     pub fn raw_curve(&self) -> Vec<Tau0Estimate> {
         self.raw.clone()
     }

@@ -549,7 +549,9 @@ fn a_continuously_moving_current_gives_a_smooth_law_that_follows_the_truth() {
         "{within2} of {} within 2σ\n{report}",
         curve.len()
     );
-    // No pooling: the same points and τ0 (σ differs by the common-offset widening).
+    // No pooling: the same points and τ0, and σ differs from the raw law's only by the
+    // common-offset widening, one amount added in quadrature to every point (its own
+    // model-error part included).
     let points = |c: &[Tau0Estimate]| {
         c.iter()
             .map(|e| (e.current_a, e.tau0_pa))
@@ -560,5 +562,18 @@ fn a_continuously_moving_current_gives_a_smooth_law_that_follows_the_truth() {
         points(&curve),
         "the raw law needed pooling\n{report}"
     );
+    let added = curve[0].tau0_std_pa.powi(2) - raw[0].tau0_std_pa.powi(2);
+    for (r, c) in raw.iter().zip(&curve) {
+        for (w, u) in [
+            (c.tau0_std_pa, r.tau0_std_pa),
+            (c.model_std_pa, r.model_std_pa),
+        ] {
+            let extra = w * w - u * u;
+            assert!(
+                extra >= 0.0 && (extra - added).abs() <= 1e-9 * (w * w).max(1.0),
+                "σ of the curve is not the raw law's plus one common offset: {r:?} / {c:?}\n{report}"
+            );
+        }
+    }
     assert!(curve.windows(2).all(|w| w[1].tau0_pa > w[0].tau0_pa));
 }
