@@ -560,9 +560,9 @@ fn the_yield_estimators_sigma_against_the_independent_truth() {
     for v in [a, b] {
         assert!(f(v, "median_rel_err") < 0.10, "median error {v}");
     }
-    // The widening covers more (44 → 92 % of the points within 2σ; 73 % before the
+    // The widening covers more (44 → 91 % of the points within 2σ; 73 % before the
     // common-offset part for a seal friction read as yield) with a band narrower than a
-    // fixed one holding the same share (median ±24 % of τ against ±271 %: the friction
+    // fixed one holding the same share (median ±21 % of τ against ±255 %: the friction
     // is most of τ0 at the lowest currents).
     assert!(
         f(b, "cover2") > f(a, "cover2") + 0.1,
