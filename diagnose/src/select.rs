@@ -398,26 +398,53 @@ fn residual_stats(d: &Prepared, r: &[f64]) -> ResidualStats {
     }
 }
 
-/// Sum of squared held-out residuals per held-out validation block, with the block's
-/// time span and sample count.
-fn holdout_blocks(d: &Prepared, force: &[f64]) -> Vec<(f64, f64, usize, f64, f64)> {
-    let mut s = vec![(f64::INFINITY, f64::NEG_INFINITY, 0usize, 0.0, 0.0); d.blocks];
+/// One held-out validation block's residuals under one model ([`holdout_blocks`]).
+#[derive(Debug, Clone, Copy)]
+struct HeldOutBlock {
+    /// First and last sample time in the block \[s\].
+    start_s: f64,
+    end_s: f64,
+    samples: usize,
+    /// Σ w (F − F̂)² over the block's held-out samples \[N²\].
+    weighted_sse: f64,
+    /// Σ w over the same samples.
+    weight: f64,
+}
+
+impl HeldOutBlock {
+    /// The block's weighted mean square \[N²\].
+    fn mean_square(&self) -> f64 {
+        self.weighted_sse / self.weight.max(1e-300)
+    }
+}
+
+/// The held-out residuals of `force` per held-out validation block, in block order
+/// (blocks without a held-out sample left out).
+fn holdout_blocks(d: &Prepared, force: &[f64]) -> Vec<HeldOutBlock> {
+    let empty = HeldOutBlock {
+        start_s: f64::INFINITY,
+        end_s: f64::NEG_INFINITY,
+        samples: 0,
+        weighted_sse: 0.0,
+        weight: 0.0,
+    };
+    let mut s = vec![empty; d.blocks];
     for j in 0..d.len() {
         if d.holdout[j] {
             let b = &mut s[d.block[j]];
-            b.0 = b.0.min(d.t[j]);
-            b.1 = b.1.max(d.t[j]);
-            b.2 += 1;
-            b.3 += d.weight[j] * (d.f[j] - force[j]).powi(2);
-            b.4 += d.weight[j];
+            b.start_s = b.start_s.min(d.t[j]);
+            b.end_s = b.end_s.max(d.t[j]);
+            b.samples += 1;
+            b.weighted_sse += d.weight[j] * (d.f[j] - force[j]).powi(2);
+            b.weight += d.weight[j];
         }
     }
-    s.into_iter().filter(|x| x.2 > 0).collect()
+    s.into_iter().filter(|x| x.samples > 0).collect()
 }
 
 /// Weighted sum of squared held-out residuals of each block of [`holdout_blocks`].
-fn block_sse(blocks: &[(f64, f64, usize, f64, f64)]) -> Vec<f64> {
-    blocks.iter().map(|x| x.3).collect()
+fn block_sse(blocks: &[HeldOutBlock]) -> Vec<f64> {
+    blocks.iter().map(|x| x.weighted_sse).collect()
 }
 
 /// The typical held-out block's RMS before and after (the root of the geometric mean of
@@ -425,11 +452,8 @@ fn block_sse(blocks: &[(f64, f64, usize, f64, f64)]) -> Vec<f64> {
 /// square after to before, from the [`holdout_blocks`] of the two models. Pooled, one block
 /// the model misfits badly (a current the fitting blocks barely saw) outweighs all the
 /// others; here each block counts once.
-fn typical_block_rmse(
-    before: &[(f64, f64, usize, f64, f64)],
-    after: &[(f64, f64, usize, f64, f64)],
-) -> (f64, f64, f64) {
-    let ms = |b: &(f64, f64, usize, f64, f64)| (b.3 / b.4.max(1e-300)).max(1e-300);
+fn typical_block_rmse(before: &[HeldOutBlock], after: &[HeldOutBlock]) -> (f64, f64, f64) {
+    let ms = |b: &HeldOutBlock| b.mean_square().max(1e-300);
     let pairs: Vec<(f64, f64)> = before
         .iter()
         .zip(after)
@@ -452,11 +476,11 @@ fn block_gains(d: &Prepared, before: &[f64], after: &[f64]) -> Vec<BlockGain> {
         .into_iter()
         .zip(holdout_blocks(d, after))
         .map(|(b, a)| BlockGain {
-            start_s: b.0,
-            end_s: b.1,
-            samples: b.2,
-            rmse_before_n: (b.3 / b.4.max(1e-300)).sqrt(),
-            rmse_after_n: (a.3 / a.4.max(1e-300)).sqrt(),
+            start_s: b.start_s,
+            end_s: b.end_s,
+            samples: b.samples,
+            rmse_before_n: b.mean_square().sqrt(),
+            rmse_after_n: a.mean_square().sqrt(),
         })
         .collect()
 }
