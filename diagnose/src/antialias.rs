@@ -249,6 +249,18 @@ impl AntiAlias {
                         w[0] * u[0] + w[1] * u[1] + w[2] * u[2] + w[3] * u[3] + w[4] * u[4]
                     };
                     for c in 0..cols {
+                        if ya[c] == 0.0
+                            && yb[c] == 0.0
+                            && x2[c] == 0.0
+                            && z1[c] == 0.0
+                            && z2[c] == 0.0
+                        {
+                            // A quiet column at rest stays at rest (every term below is
+                            // zero and `tiny` would return 0): a Jacobian column of a
+                            // knot the current is away from, most of the record.
+                            (got[c], z1[c], z2[c], x1[c], x2[c]) = (0.0, 0.0, 0.0, 0.0, 0.0);
+                            continue;
+                        }
                         let u = [x2[c], z1[c], z2[c], ya[c], yb[c]];
                         let pk = peak[c].max(ya[c].abs()).max(yb[c].abs());
                         let quiet = ya[c] == 0.0 && yb[c] == 0.0;
@@ -271,6 +283,18 @@ impl AntiAlias {
                         let xs = row(g.pos[j - 1] + s);
                         for c in 0..cols {
                             let x0 = xs[c];
+                            if x0 == 0.0
+                                && x1[c] == 0.0
+                                && x2[c] == 0.0
+                                && z1[c] == 0.0
+                                && z2[c] == 0.0
+                            {
+                                // At rest and quiet: stays at rest (as above).
+                                if s == se {
+                                    got[c] = 0.0;
+                                }
+                                continue;
+                            }
                             let mut o =
                                 b[0] * x0 + b[1] * x1[c] + b[2] * x2[c] - a1 * z1[c] - a2 * z2[c];
                             peak[c] = peak[c].max(x0.abs());
