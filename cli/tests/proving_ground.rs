@@ -498,9 +498,8 @@ fn a_gas_spring_and_a_mass_that_cancel_alone_are_found_as_a_pair() {
 /// (`scripts/proving_ground/estimator_coverage.py`): each replayed through the twin with
 /// the generator's geometry and compared, every 0.5 s, with the yield stress the simulated
 /// fluid really had. Run with and without the model-error widening (issue 13). The
-/// 100-scenario studies are in BENCHMARKS.md (seeds 0–99: 94 % within 2σ, 92–94 % in
-/// each current range up to 1 A and 99 % above; seeds 100–199: 95–97 % in every range);
-/// this is a regression guard, not the goal.
+/// 300-scenario study is in BENCHMARKS.md (seeds 0–299: 94 % within 2σ, 90–97 % in every
+/// current range; issue 13, session 55); this is a regression guard, not the goal.
 #[test]
 fn the_yield_estimators_sigma_against_the_independent_truth() {
     let dir = TempDir::new("pg-cov");

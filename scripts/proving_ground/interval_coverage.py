@@ -43,13 +43,11 @@ def truth_of(effect, meta):
     return None
 
 
-P_ATM = 101325.0
-
-
 def gas_line_stiffness(meta, csv_path):
     """The slope (N/mm) of the least-squares line through the generator's polytropic gas
     force over the record's displacement column: what a linear spring fitted to that
-    record estimates."""
+    record estimates. The gas force is −(p_g − p_atm) Ar; the constant p_atm Ar does not
+    move a slope, so only −p_g Ar is formed."""
     p = {e["effect"]: e for e in meta["effects"]}["gas_spring"]["parameters"]
     ar = meta["geometry"]["Ar"]
     xs = []
@@ -57,8 +55,7 @@ def gas_line_stiffness(meta, csv_path):
         col = next(f).strip().split(",").index("displacement_m")
         for line in f:
             xs.append(float(line.split(",")[col]))
-    fs = [-(p["p0_abs_Pa"] * (p["Vg0_m3"] / (p["Vg0_m3"] + ar * x)) ** p["kappa"] - P_ATM) * ar
-          for x in xs]
+    fs = [-p["p0_abs_Pa"] * (p["Vg0_m3"] / (p["Vg0_m3"] + ar * x)) ** p["kappa"] * ar for x in xs]
     mx, mf = sum(xs) / len(xs), sum(fs) / len(fs)
     sxy = sum((x - mx) * (g - mf) for x, g in zip(xs, fs))
     sxx = sum((x - mx) ** 2 for x in xs)
