@@ -31,7 +31,7 @@ use serde::Serialize;
 use twin::Effect;
 
 use crate::data::Prepared;
-use crate::model::{fit_limited, Fit};
+use crate::model::{fit_with, Fit, FitDetail};
 use crate::stats;
 
 /// Settings of the calibration.
@@ -188,7 +188,13 @@ pub fn null_statistics<C: Copy + Sync>(
             .wrapping_add(k as u64);
         let rd = replicate(d, current, r, block, seed);
         // The current model refitted on the replicate, from its own values.
-        let m = fit_limited(&rd, &current.layout, &current.theta, 10);
+        let m = fit_with(
+            &rd,
+            &current.layout,
+            &current.theta,
+            10,
+            FitDetail::CostOnly,
+        );
         let row = cands
             .iter()
             .map(|&e| statistic(&m, &fit_candidate(&rd, &m, e)))

@@ -292,6 +292,38 @@ fn xp_free(xp: f64) -> f64 {
     }
 }
 
+/// [`evaluate`] with the Jacobian computed but, behind the anti-alias filter, not yet
+/// filtered: the force (filtered) with an empty `jac`, and the Jacobian on the sub-sample
+/// grid for [`filter_jacobian`]. The model run (chamber and slit-law solves) is most of an
+/// evaluation's cost and filtering the Jacobian's columns most of the rest: a trial point
+/// that Levenberg–Marquardt may reject runs the model once, and is filtered only if taken.
+/// Without the filter the Jacobian is complete and the second vector empty.
+pub fn evaluate_unfiltered(d: &Prepared, lay: &Layout, theta: &[f64]) -> (Evaluation, Vec<f64>) {
+    match &d.anti_alias {
+        None => (evaluate_at(d, &d.channels(), lay, theta, true), Vec::new()),
+        Some(aa) => {
+            let g = &d.subgrid;
+            let ev = evaluate_at(d, &g.channels(), lay, theta, true);
+            let force = aa.resample(g, &ev.force, 1);
+            (
+                Evaluation {
+                    force,
+                    jac: Vec::new(),
+                },
+                ev.jac,
+            )
+        }
+    }
+}
+
+/// The Jacobian of [`evaluate_unfiltered`] filtered as [`evaluate`] filters it.
+pub fn filter_jacobian(d: &Prepared, lay: &Layout, grid_jac: &[f64]) -> Vec<f64> {
+    match &d.anti_alias {
+        None => grid_jac.to_vec(),
+        Some(aa) => aa.resample(&d.subgrid, grid_jac, lay.len()),
+    }
+}
+
 /// Evaluate the model with parameters `theta` at the record's samples: at the samples
 /// themselves, or, behind the fitted anti-alias filter, on the sub-sample grid
 /// ([`crate::subsample`]) and then through the filter at the grid's rate
@@ -997,6 +1029,29 @@ pub fn fit(d: &Prepared, lay: &Layout, theta0: &[f64]) -> Fit {
 
 /// [`fit`] with at most `max_iter` Levenberg–Marquardt iterations.
 pub fn fit_limited(d: &Prepared, lay: &Layout, theta0: &[f64], max_iter: usize) -> Fit {
+    fit_with(d, lay, theta0, max_iter, FitDetail::Full)
+}
+
+/// What a fit computes once Levenberg–Marquardt has stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FitDetail {
+    /// Standard errors and the residuals' lag-1 autocorrelation too: one more evaluation
+    /// with the Jacobian, its normal equations and their inverse.
+    Full,
+    /// Parameters, force and SSE only (`se` and `rho1` are NaN): what a bootstrap
+    /// replicate's statistic or a choice between starts reads. The SSE is the one `Full`
+    /// gives (an evaluation's force does not depend on whether its Jacobian is taken).
+    CostOnly,
+}
+
+/// [`fit_limited`], computing what `detail` asks for.
+pub fn fit_with(
+    d: &Prepared,
+    lay: &Layout,
+    theta0: &[f64],
+    max_iter: usize,
+    detail: FitDetail,
+) -> Fit {
     let p = lay.len();
     let n = d.len();
     let mut theta = theta0.to_vec();
@@ -1012,35 +1067,53 @@ pub fn fit_limited(d: &Prepared, lay: &Layout, theta0: &[f64], max_iter: usize) 
         max_iter,
         ..LmOptions::default()
     };
-    // Behind the anti-alias filter, trial points are evaluated without the Jacobian
-    // (filtering its columns is most of an evaluation's cost, and a rejected trial does
-    // not need it); an accepted one gets it when it is linearised. Without the filter the
-    // Jacobian costs little beside the force, and every trial gets it at once.
-    let eager = d.anti_alias.is_none();
-    let full = |theta: &[f64]| evaluate(d, lay, theta, true);
+    // Trial points run the model with its Jacobian, which is filtered only once a point
+    // is taken and linearised ([`evaluate_unfiltered`]): a rejected trial costs one model
+    // run, an accepted one no second run.
+    type State = (Vec<f64>, Evaluation, Vec<f64>);
     let fit = levenberg_marquardt(
-        (theta, ev),
+        (theta, ev, Vec::new()),
         sse,
         &opts,
-        |(theta, ev): &(Vec<f64>, Evaluation)| {
+        |(theta, ev, grid_jac): &State| {
             let (mut jtj, mut jtr) = if ev.jac.is_empty() {
-                normal_equations(d, &full(theta), p)
+                normal_equations(d, &ev.force, &filter_jacobian(d, lay, grid_jac), p)
             } else {
-                normal_equations(d, ev, p)
+                normal_equations(d, &ev.force, &ev.jac, p)
             };
             add_knot_penalty(d, lay, theta, &mut jtj, &mut jtr);
             Some((jtj, jtr))
         },
-        |(theta, _): &(Vec<f64>, Evaluation), step: &nalgebra::DVector<f64>| {
+        |(theta, _, _): &State, step: &nalgebra::DVector<f64>| {
             let mut trial: Vec<f64> = theta.iter().zip(step.iter()).map(|(t, s)| t + s).collect();
             clamp_bounds(d, lay, &mut trial);
-            let ev = evaluate(d, lay, &trial, eager);
+            let (ev, grid_jac) = evaluate_unfiltered(d, lay, &trial);
             let sse = cost(&trial, &ev.force);
-            Some(((trial, ev), sse))
+            Some(((trial, ev, grid_jac), sse))
         },
     );
-    let (theta, ev) = fit.state;
-    let ev = if ev.jac.is_empty() { full(&theta) } else { ev };
+    let (theta, ev, grid_jac) = fit.state;
+    if detail == FitDetail::CostOnly {
+        return Fit {
+            layout: lay.clone(),
+            train_sse: sse_train(d, &ev.force),
+            train_n: d.train.iter().filter(|t| **t).count(),
+            force: ev.force,
+            theta,
+            se: vec![f64::NAN; p],
+            rho1: f64::NAN,
+        };
+    }
+    let ev = if !ev.jac.is_empty() {
+        ev
+    } else if !grid_jac.is_empty() {
+        Evaluation {
+            jac: filter_jacobian(d, lay, &grid_jac),
+            force: ev.force,
+        }
+    } else {
+        evaluate(d, lay, &theta, true)
+    };
     let sse = sse_train(d, &ev.force);
     // Residual autocorrelation and parameter standard errors.
     let r: Vec<f64> = (0..n)
@@ -1050,7 +1123,7 @@ pub fn fit_limited(d: &Prepared, lay: &Layout, theta0: &[f64], max_iter: usize) 
     let rho1 = crate::stats::autocorr(&r, 1);
     let m = r.len();
     let n_eff = crate::stats::effective_n(m, rho1);
-    let (mut jtj, mut jtr) = normal_equations(d, &ev, p);
+    let (mut jtj, mut jtr) = normal_equations(d, &ev.force, &ev.jac, p);
     add_knot_penalty(d, lay, &theta, &mut jtj, &mut jtr);
     // A parameter the data do not move (a leak at zero on noise-free velocity) has a zero
     // column: decouple it so the others keep their errors.
@@ -1080,7 +1153,8 @@ pub fn fit_limited(d: &Prepared, lay: &Layout, theta0: &[f64], max_iter: usize) 
 
 fn normal_equations(
     d: &Prepared,
-    ev: &Evaluation,
+    force: &[f64],
+    jac: &[f64],
     p: usize,
 ) -> (nalgebra::DMatrix<f64>, nalgebra::DVector<f64>) {
     // Upper triangle, row-major, over the nonzero entries of each Jacobian row (most
@@ -1092,9 +1166,9 @@ fn normal_equations(
         if !d.train[j] {
             continue;
         }
-        let row = &ev.jac[j * p..(j + 1) * p];
+        let row = &jac[j * p..(j + 1) * p];
         let w = d.weight[j];
-        let r = d.f[j] - ev.force[j];
+        let r = d.f[j] - force[j];
         nz.clear();
         nz.extend(
             row.iter()
@@ -1704,6 +1778,34 @@ mod tests {
             }
         }
         assert!(checked >= 20, "only {checked} reversals checked");
+    }
+
+    #[test]
+    fn a_jacobian_filtered_late_and_a_cost_only_fit_change_no_number() {
+        let mut d = record();
+        let dt = d.measurement.sample_interval_s;
+        d.set_anti_alias(Some(crate::antialias::AntiAlias::butterworth2(0.2, dt)));
+        let (base, th, _) = bare_baseline(&d);
+        let lay = base.with(Effect::FluidCompressibility);
+        let mut tc = th.clone();
+        tc.extend([5e-8, 3e-4]);
+        // A trial point's model run, filtered only when taken, is the whole evaluation.
+        let whole = evaluate(&d, &lay, &tc, true);
+        let (ev, grid_jac) = evaluate_unfiltered(&d, &lay, &tc);
+        assert!(ev.jac.is_empty() && grid_jac.len() > whole.jac.len());
+        assert_eq!(ev.force, whole.force);
+        assert_eq!(filter_jacobian(&d, &lay, &grid_jac), whole.jac);
+        // A fit that stops at its cost is the full fit without the errors.
+        let full = fit_with(&d, &lay, &tc, 6, FitDetail::Full);
+        let cost = fit_with(&d, &lay, &tc, 6, FitDetail::CostOnly);
+        assert_ne!(full.theta, tc, "the fit moved");
+        assert_eq!(full.theta, cost.theta);
+        assert_eq!(full.force, cost.force);
+        assert_eq!(
+            (full.train_sse, full.train_n),
+            (cost.train_sse, cost.train_n)
+        );
+        assert!(full.se.iter().all(|s| !s.is_nan()) && cost.se.iter().all(|s| s.is_nan()));
     }
 
     #[test]

@@ -6,7 +6,7 @@ use twin::Effect;
 
 use crate::calibrate::{self, Calibrated, Calibration};
 use crate::data::{prepare, DataError, Phase, Prepared, Signals};
-use crate::model::{effect_params, evaluate, extend, fit, Fit, FrictionScale, Layout};
+use crate::model::{effect_params, evaluate, extend, fit, Fit, FitDetail, FrictionScale, Layout};
 use crate::report::*;
 use crate::stats;
 use crate::unexplained::unexplained;
@@ -579,12 +579,18 @@ fn holdout_refit(d: &Prepared, fit: &Fit) -> Option<Fit> {
 
 /// Fit `e` on top of `current` (several start values for the nonlinear ones).
 pub fn fit_candidate(d: &Prepared, current: &Fit, e: Effect) -> Fit {
-    fit_candidate_limited(d, current, e, 40)
+    fit_candidate_limited(d, current, e, 40, FitDetail::Full)
 }
 
 /// [`fit_candidate`] with at most `max_iter` Levenberg–Marquardt iterations (the bootstrap
-/// replicates start next to their optimum and need few).
-pub fn fit_candidate_limited(d: &Prepared, current: &Fit, e: Effect, max_iter: usize) -> Fit {
+/// replicates start next to their optimum and need few), computing what `detail` asks for.
+pub fn fit_candidate_limited(
+    d: &Prepared,
+    current: &Fit,
+    e: Effect,
+    max_iter: usize,
+    detail: FitDetail,
+) -> Fit {
     let lay = current.layout.with(e);
     let fpeak = d.f.iter().fold(0.0f64, |m, x| m.max(x.abs())).max(1e-9);
     let xr = d.half_stroke_m.max(1e-6);
@@ -620,11 +626,12 @@ pub fn fit_candidate_limited(d: &Prepared, current: &Fit, e: Effect, max_iter: u
             .into_iter()
             .map(|s| {
                 let th = extend(&current.layout, &current.theta, &lay, &[(e, s)]);
-                crate::model::fit_limited(d, &lay, &th, screen)
+                crate::model::fit_with(d, &lay, &th, screen, FitDetail::CostOnly)
             })
             .min_by(|a, b| a.train_sse.total_cmp(&b.train_sse))
             .expect("three starts");
-        return crate::model::fit_limited(d, &lay, &best.theta, max_iter.saturating_sub(screen));
+        let rest = max_iter.saturating_sub(screen);
+        return crate::model::fit_with(d, &lay, &best.theta, rest, detail);
     }
     let mut best: Option<(f64, Vec<f64>)> = None;
     for s in starts {
@@ -640,7 +647,7 @@ pub fn fit_candidate_limited(d: &Prepared, current: &Fit, e: Effect, max_iter: u
         }
     }
     let th = best.map(|b| b.1).unwrap_or_default();
-    crate::model::fit_limited(d, &lay, &th, max_iter)
+    crate::model::fit_with(d, &lay, &th, max_iter, detail)
 }
 
 struct Judged {
@@ -720,11 +727,20 @@ pub fn identifiable_pairs(d: &Prepared) -> Vec<(Effect, Effect)> {
 
 /// Fit a candidate on top of `current`: the effect, then its partner from there (each
 /// with its starts, [`fit_candidate_limited`]).
-fn fit_candidate_pair(d: &Prepared, current: &Fit, c: Candidate, max_iter: usize) -> Fit {
-    let one = fit_candidate_limited(d, current, c.0, max_iter);
+fn fit_candidate_pair(
+    d: &Prepared,
+    current: &Fit,
+    c: Candidate,
+    max_iter: usize,
+    detail: FitDetail,
+) -> Fit {
     match c.1 {
-        Some(p) => fit_candidate_limited(d, &one, p, max_iter),
-        None => one,
+        // The first effect's fit is only the second's start.
+        Some(p) => {
+            let one = fit_candidate_limited(d, current, c.0, max_iter, FitDetail::CostOnly);
+            fit_candidate_limited(d, &one, p, max_iter, detail)
+        }
+        None => fit_candidate_limited(d, current, c.0, max_iter, detail),
     }
 }
 
@@ -952,7 +968,7 @@ fn fit_and_judge(
             .map(|(a, b)| (a, Some(b))),
     );
     numerics::parallel::map_indexed(cands.len(), cands.len(), |k| {
-        let fit = fit_candidate_pair(d, current, cands[k], 40);
+        let fit = fit_candidate_pair(d, current, cands[k], 40, FitDetail::Full);
         judge(d, reg, current, flags, fit, cands[k].0, cands[k].1, th)
     })
 }
@@ -1068,10 +1084,12 @@ fn round_verdicts(
                 Some((e, j.fit.theta[k..k + effect_params(e).len()].to_vec()))
             })
             .collect();
-        let joint = fit(
+        let joint = crate::model::fit_with(
             d,
             &lay,
             &extend(&current.layout, &current.theta, &lay, &init),
+            40,
+            FitDetail::CostOnly,
         );
         d.f.iter().zip(&joint.force).map(|(a, b)| a - b).collect()
     };
@@ -1082,7 +1100,7 @@ fn round_verdicts(
         &boot,
         cal,
         round,
-        &|d, m, c| fit_candidate_pair(d, m, c, 12),
+        &|d, m, c| fit_candidate_pair(d, m, c, 12, FitDetail::CostOnly),
         &|k| {
             progress(Progress {
                 round,
