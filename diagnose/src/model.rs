@@ -292,18 +292,24 @@ fn xp_free(xp: f64) -> f64 {
     }
 }
 
-/// [`evaluate`] with the Jacobian computed but, behind the anti-alias filter, not yet
-/// filtered: the force (filtered) with an empty `jac`, and the Jacobian on the sub-sample
-/// grid for [`filter_jacobian`]. The model run (chamber and slit-law solves) is most of an
-/// evaluation's cost and filtering the Jacobian's columns most of the rest: a trial point
-/// that Levenberg–Marquardt may reject runs the model once, and is filtered only if taken.
-/// Without the filter the Jacobian is complete and the second vector empty.
-pub fn evaluate_unfiltered(d: &Prepared, lay: &Layout, theta: &[f64]) -> (Evaluation, Vec<f64>) {
+/// [`evaluate`] with the Jacobian, if asked for, not yet filtered: the force (through the
+/// anti-alias filter, if any) and, behind the filter, the Jacobian on the sub-sample grid
+/// for [`filter_jacobian`] (without the filter the Jacobian is already in the evaluation
+/// and the second vector is empty). The model run (chamber and slit-law solves) is most of
+/// an evaluation's cost and filtering the Jacobian's columns most of the rest: a trial
+/// point that Levenberg–Marquardt may reject runs the model once, and is filtered only if
+/// taken.
+pub fn evaluate_unfiltered(
+    d: &Prepared,
+    lay: &Layout,
+    theta: &[f64],
+    jac: bool,
+) -> (Evaluation, Vec<f64>) {
     match &d.anti_alias {
-        None => (evaluate_at(d, &d.channels(), lay, theta, true), Vec::new()),
+        None => (evaluate_at(d, &d.channels(), lay, theta, jac), Vec::new()),
         Some(aa) => {
             let g = &d.subgrid;
-            let ev = evaluate_at(d, &g.channels(), lay, theta, true);
+            let ev = evaluate_at(d, &g.channels(), lay, theta, jac);
             let force = aa.resample(g, &ev.force, 1);
             (
                 Evaluation {
@@ -316,11 +322,29 @@ pub fn evaluate_unfiltered(d: &Prepared, lay: &Layout, theta: &[f64]) -> (Evalua
     }
 }
 
-/// The Jacobian of [`evaluate_unfiltered`] filtered as [`evaluate`] filters it.
+/// A Jacobian on the model's grid ([`evaluate_unfiltered`]) through the anti-alias filter.
 pub fn filter_jacobian(d: &Prepared, lay: &Layout, grid_jac: &[f64]) -> Vec<f64> {
     match &d.anti_alias {
         None => grid_jac.to_vec(),
         Some(aa) => aa.resample(&d.subgrid, grid_jac, lay.len()),
+    }
+}
+
+/// `ev` of [`evaluate_unfiltered`] with its Jacobian `grid_jac` filtered into it (as it
+/// is when that is empty).
+fn with_filtered_jacobian(
+    d: &Prepared,
+    lay: &Layout,
+    ev: Evaluation,
+    grid_jac: &[f64],
+) -> Evaluation {
+    if grid_jac.is_empty() {
+        ev
+    } else {
+        Evaluation {
+            jac: filter_jacobian(d, lay, grid_jac),
+            force: ev.force,
+        }
     }
 }
 
@@ -329,21 +353,8 @@ pub fn filter_jacobian(d: &Prepared, lay: &Layout, grid_jac: &[f64]) -> Vec<f64>
 /// ([`crate::subsample`]) and then through the filter at the grid's rate
 /// ([`crate::antialias::AntiAlias::resample`]).
 pub fn evaluate(d: &Prepared, lay: &Layout, theta: &[f64], jac: bool) -> Evaluation {
-    match &d.anti_alias {
-        None => evaluate_at(d, &d.channels(), lay, theta, jac),
-        Some(aa) => {
-            let g = &d.subgrid;
-            let ev = evaluate_at(d, &g.channels(), lay, theta, jac);
-            Evaluation {
-                force: aa.resample(g, &ev.force, 1),
-                jac: if jac {
-                    aa.resample(g, &ev.jac, lay.len())
-                } else {
-                    Vec::new()
-                },
-            }
-        }
-    }
+    let (ev, grid_jac) = evaluate_unfiltered(d, lay, theta, jac);
+    with_filtered_jacobian(d, lay, ev, &grid_jac)
 }
 
 /// The mean over the `nk` current knots of the coefficient a scaled friction step follows
@@ -1087,7 +1098,7 @@ pub fn fit_with(
         |(theta, _, _): &State, step: &nalgebra::DVector<f64>| {
             let mut trial: Vec<f64> = theta.iter().zip(step.iter()).map(|(t, s)| t + s).collect();
             clamp_bounds(d, lay, &mut trial);
-            let (ev, grid_jac) = evaluate_unfiltered(d, lay, &trial);
+            let (ev, grid_jac) = evaluate_unfiltered(d, lay, &trial, true);
             let sse = cost(&trial, &ev.force);
             Some(((trial, ev, grid_jac), sse))
         },
@@ -1104,16 +1115,9 @@ pub fn fit_with(
             rho1: f64::NAN,
         };
     }
-    let ev = if !ev.jac.is_empty() {
-        ev
-    } else if !grid_jac.is_empty() {
-        Evaluation {
-            jac: filter_jacobian(d, lay, &grid_jac),
-            force: ev.force,
-        }
-    } else {
-        evaluate(d, lay, &theta, true)
-    };
+    // Every state carries its Jacobian, filtered or on the grid.
+    let ev = with_filtered_jacobian(d, lay, ev, &grid_jac);
+    debug_assert_eq!(ev.jac.len(), n * p);
     let sse = sse_train(d, &ev.force);
     // Residual autocorrelation and parameter standard errors.
     let r: Vec<f64> = (0..n)
@@ -1789,12 +1793,22 @@ mod tests {
         let lay = base.with(Effect::FluidCompressibility);
         let mut tc = th.clone();
         tc.extend([5e-8, 3e-4]);
-        // A trial point's model run, filtered only when taken, is the whole evaluation.
-        let whole = evaluate(&d, &lay, &tc, true);
-        let (ev, grid_jac) = evaluate_unfiltered(&d, &lay, &tc);
+        // A trial point's model run, filtered only when taken, is the whole evaluation:
+        // the model on the sub-sample grid, force and Jacobian through the filter.
+        let (aa, g) = (d.anti_alias.expect("set above"), &d.subgrid);
+        let raw = evaluate_at(&d, &g.channels(), &lay, &tc, true);
+        let whole = Evaluation {
+            force: aa.resample(g, &raw.force, 1),
+            jac: aa.resample(g, &raw.jac, lay.len()),
+        };
+        let (ev, grid_jac) = evaluate_unfiltered(&d, &lay, &tc, true);
         assert!(ev.jac.is_empty() && grid_jac.len() > whole.jac.len());
         assert_eq!(ev.force, whole.force);
         assert_eq!(filter_jacobian(&d, &lay, &grid_jac), whole.jac);
+        assert_eq!(evaluate(&d, &lay, &tc, true).jac, whole.jac);
+        // The force does not depend on whether the Jacobian is taken (a cost-only fit's SSE
+        // is read from a trial's force).
+        assert_eq!(evaluate(&d, &lay, &tc, false).force, whole.force);
         // A fit that stops at its cost is the full fit without the errors.
         let full = fit_with(&d, &lay, &tc, 6, FitDetail::Full);
         let cost = fit_with(&d, &lay, &tc, 6, FitDetail::CostOnly);
