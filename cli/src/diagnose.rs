@@ -44,7 +44,8 @@ pub struct DiagnoseArgs {
     pub html: Option<PathBuf>,
     /// Write the per-sample comparison as CSV here: time, rebuilt velocity and its σ,
     /// current, measured force, the baseline's and the final model's force, the sample's
-    /// weight and its role (`fit`, `held_out` or `excluded`).
+    /// weight and its role (`fit`, `held_out`, `unscored` — in a held-out block at a current the
+    /// fit cannot predict — or `excluded`).
     #[arg(long, value_name = "OUT.csv")]
     pub residuals: Option<PathBuf>,
     /// How candidate effects are accepted: `calibrated` (against a bootstrap null of the
@@ -252,8 +253,12 @@ fn residuals_csv(dg: &Diagnosis) -> String {
             "excluded"
         } else if d.holdout[j] {
             "held_out"
-        } else {
+        } else if d.train[j] {
             "fit"
+        } else {
+            // In a held-out block but not scored: at a current beyond the fitted levels
+            // or at a level the fit never saw (`split.method`).
+            "unscored"
         };
         let _ = writeln!(
             out,

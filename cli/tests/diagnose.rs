@@ -233,6 +233,11 @@ fn check_residuals_csv(path: &std::path::Path, j: &serde_json::Value) {
     for role in ["fit", "held_out", "excluded"] {
         assert!(rows.iter().any(|r| r[8] == role), "no {role} row");
     }
+    // The roles are the split's: a held-out sample the split leaves unscored is neither.
+    for (role, key) in [("fit", "train_samples"), ("held_out", "holdout_samples")] {
+        let rows_of = rows.iter().filter(|r| r[8] == role).count() as u64;
+        assert_eq!(rows_of, j["split"][key].as_u64().unwrap(), "{role} rows");
+    }
 }
 
 /// Headless Chromium: `chromium` or `chromium-browser` on PATH (scripts/setup-chromium.sh

@@ -47,6 +47,10 @@ pub struct Layout {
     /// How the seal friction's step scales with the current: not at all (the friction of
     /// the library), or as one of the fluid's shapes it must beat ([`FrictionScale`]).
     pub friction_scale: FrictionScale,
+    /// Knots whose viscous coefficient is held where it stands (its Jacobian column is
+    /// zero): the record left it unidentified and it took its neighbours' value
+    /// ([`hold_unidentified_viscous`]).
+    pub held_viscous: Vec<usize>,
 }
 
 /// The seal friction's step `F_c s`, or the same step following one of the fluid's own
@@ -1093,6 +1097,7 @@ pub fn fit_with(
                 normal_equations(d, &ev.force, &ev.jac, p)
             };
             add_knot_penalty(d, lay, theta, &mut jtj, &mut jtr);
+            hold_viscous(lay, &mut jtj, &mut jtr);
             Some((jtj, jtr))
         },
         |(theta, _, _): &State, step: &nalgebra::DVector<f64>| {
@@ -1129,6 +1134,7 @@ pub fn fit_with(
     let n_eff = crate::stats::effective_n(m, rho1);
     let (mut jtj, mut jtr) = normal_equations(d, &ev.force, &ev.jac, p);
     add_knot_penalty(d, lay, &theta, &mut jtj, &mut jtr);
+    hold_viscous(lay, &mut jtj, &mut jtr);
     // A parameter the data do not move (a leak at zero on noise-free velocity) has a zero
     // column: decouple it so the others keep their errors.
     for q in 0..p {
@@ -1144,6 +1150,10 @@ pub fn fit_with(
             .collect(),
         None => vec![f64::INFINITY; p],
     };
+    let mut se = se;
+    for &k in &lay.held_viscous {
+        se[lay.nk + k] = 0.0;
+    }
     Fit {
         layout: lay.clone(),
         theta,
@@ -1152,6 +1162,17 @@ pub fn fit_with(
         train_sse: sse,
         train_n: m,
         rho1,
+    }
+}
+
+/// Zeroes the rows and columns of the held viscous coefficients ([`Layout::held_viscous`])
+/// in the normal equations, so a step leaves them where they stand.
+fn hold_viscous(lay: &Layout, jtj: &mut nalgebra::DMatrix<f64>, jtr: &mut nalgebra::DVector<f64>) {
+    for &k in &lay.held_viscous {
+        let q = lay.nk + k;
+        jtj.row_mut(q).fill(0.0);
+        jtj.column_mut(q).fill(0.0);
+        jtr[q] = 0.0;
     }
 }
 
@@ -1405,6 +1426,55 @@ pub fn better_basin(d: &Prepared, basins: Vec<Fit>) -> Fit {
     best.expect("at least one basin").1
 }
 
+/// How many times the record's peak force a knot's viscous force at the record's peak
+/// speed, `c V`, may reach before the knot counts as unidentified there.
+pub const UNIDENTIFIED_KNOT_LIMIT: f64 = 100.0;
+
+/// The baseline with the viscous coefficient of every knot the record left unidentified
+/// (`c V` above [`UNIDENTIFIED_KNOT_LIMIT`] times the peak force) held at its neighbours',
+/// interpolated in ln c over the current between the nearest knots with a fitted value
+/// (neither run away nor at the floor), and the rest refitted. Such a knot is a
+/// bi-viscous fluid that never yields at its current within the stroke: its samples are
+/// fitted as well by a huge c beside a small F_y as by the fluid's own c beside a
+/// yield force the stroke never reached, and only the second predicts the same current
+/// at another speed. The fluid's viscosity changes by a fraction over the current range
+/// (PHYSICS.md: it rises with the current), so its neighbours' value stands in. Kept when
+/// it predicts the held-out blocks no worse ([`better_basin`]); `None` when no knot ran
+/// away or none is left to take the value from.
+pub fn hold_unidentified_viscous(d: &Prepared, base: &Fit) -> Option<Fit> {
+    let nk = base.layout.nk;
+    let limit = UNIDENTIFIED_KNOT_LIMIT * d.peak_force() / d.velocity_scale.max(1e-12);
+    let c = |k: usize| base.theta[nk + k];
+    let runaway: Vec<usize> = (0..nk)
+        .filter(|&k| c(k) > limit && !base.layout.held_viscous.contains(&k))
+        .collect();
+    let fitted: Vec<usize> = (0..nk)
+        .filter(|&k| c(k) <= limit && c(k) > 10.0 * C_MIN)
+        .collect();
+    if runaway.is_empty() || fitted.is_empty() {
+        return None;
+    }
+    let mut theta = base.theta.clone();
+    for &k in &runaway {
+        let i = d.knots[k];
+        let below = fitted.iter().rev().find(|&&q| d.knots[q] < i);
+        let above = fitted.iter().find(|&&q| d.knots[q] > i);
+        theta[nk + k] = match (below, above) {
+            (Some(&a), Some(&b)) => {
+                let w = (i - d.knots[a]) / (d.knots[b] - d.knots[a]);
+                ((1.0 - w) * c(a).ln() + w * c(b).ln()).exp()
+            }
+            (Some(&a), None) | (None, Some(&a)) => c(a),
+            (None, None) => unreachable!("fitted is not empty"),
+        };
+    }
+    let mut lay = base.layout.clone();
+    lay.held_viscous.extend(runaway);
+    lay.held_viscous.sort_unstable();
+    let held = fit(d, &lay, &theta);
+    (held.holdout_rmse(d) <= base.holdout_rmse(d)).then_some(held)
+}
+
 /// The baseline: of [`baseline_basins`], the [`better_basin`] (no anti-alias filter).
 pub fn fit_baseline(d: &Prepared) -> Fit {
     better_basin(d, baseline_basins(d))
@@ -1469,6 +1539,7 @@ fn baseline_start(d: &Prepared) -> (Layout, Vec<f64>) {
             effects: Vec::new(),
             soft: false,
             friction_scale: FrictionScale::Constant,
+            held_viscous: Vec::new(),
         },
         theta,
     )
@@ -1500,6 +1571,7 @@ mod tests {
             effects: vec![],
             soft: true,
             friction_scale: FrictionScale::Constant,
+            held_viscous: Vec::new(),
         };
         let th = vec![
             250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 0.0, 0.004, 0.0, 0.0, 0.0, 0.0, 0.0,
@@ -1547,6 +1619,7 @@ mod tests {
             effects: vec![],
             soft: false,
             friction_scale: FrictionScale::Constant,
+            held_viscous: Vec::new(),
         };
         assert_eq!(layout.nk, 1);
         // No leak of its own: each sample's velocity error makes it ([`sample_leak`]).
@@ -1607,6 +1680,7 @@ mod tests {
             effects: vec![],
             soft: false,
             friction_scale: FrictionScale::Constant,
+            held_viscous: Vec::new(),
         };
         // Knot values linear in current (uneven spacing) cost nothing.
         let line = |a: f64, b: f64| d.knots.iter().map(|i| a + b * i).collect::<Vec<f64>>();
@@ -1670,6 +1744,7 @@ mod tests {
             effects: Effect::ALL.to_vec(),
             soft: true,
             friction_scale: FrictionScale::Constant,
+            held_viscous: Vec::new(),
         };
         // knots' F_y and c, offset, leak, relative leak, yield softness, knots' c₂
         let mut theta = vec![

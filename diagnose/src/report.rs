@@ -57,7 +57,7 @@ pub struct UnidentifiedKnot {
 
 impl UnidentifiedKnot {
     /// How many times the record's peak force a knot's `c V` or `F_y` may reach.
-    pub const LIMIT: f64 = 100.0;
+    pub const LIMIT: f64 = crate::model::UNIDENTIFIED_KNOT_LIMIT;
 }
 
 /// A fitted parameter with its 95 % interval.

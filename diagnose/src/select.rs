@@ -1587,6 +1587,26 @@ pub fn diagnose_with_progress(
     d.weight = crate::model::predictive_weights(&d, &first, kappa);
     d.knot_smoothing = crate::model::knot_smoothing(&d, &first);
     let mut base = fit(&d, &first.layout, &first.theta);
+    // A knot whose viscous coefficient ran away takes its neighbours' (kept when it
+    // predicts no worse); it stays listed as unidentified, with what was done.
+    let mut held_knots = Vec::new();
+    if let Some(held) = crate::model::hold_unidentified_viscous(&d, &base) {
+        held_knots = unidentified_knots(&d, &base)
+            .into_iter()
+            .filter_map(|mut k| {
+                let q = d.knots.iter().position(|&c| c == k.current_a)?;
+                held.layout.held_viscous.contains(&q).then(|| {
+                    k.why = format!(
+                        "{}; held at its neighbours' {:.4e} N s/m",
+                        k.why,
+                        held.theta[held.layout.nk + q]
+                    );
+                    k
+                })
+            })
+            .collect();
+        base = held;
+    }
     // The yield softness is a property of the fluid the baseline has settled: candidates
     // and their bootstrap replicates hold it (free, it trades with a seal friction, whose
     // smoothed step is the same shape at one current; on proving-ground seed 42 the
@@ -1725,7 +1745,13 @@ pub fn diagnose_with_progress(
         withdrawn,
         fluid_shape: sel.fluid_shape,
         unexplained,
-        unidentified_knots: unidentified_knots(&d, &current),
+        unidentified_knots: {
+            let more: Vec<UnidentifiedKnot> = unidentified_knots(&d, &current)
+                .into_iter()
+                .filter(|k| held_knots.iter().all(|h| h.current_a != k.current_a))
+                .collect();
+            held_knots.into_iter().chain(more).collect()
+        },
         trials: sel.trials,
         final_model: summary(&current),
         final_parameters: base_parameters(&current),
