@@ -1144,13 +1144,12 @@ pub fn fit_with(
     }
     let sigma2 = sse / (m as f64 - p as f64).max(1.0);
     let inflate = m as f64 / n_eff;
-    let se = match jtj.clone().try_inverse() {
+    let mut se = match jtj.clone().try_inverse() {
         Some(inv) => (0..p)
             .map(|q| (inv[(q, q)].max(0.0) * sigma2 * inflate).sqrt())
             .collect(),
         None => vec![f64::INFINITY; p],
     };
-    let mut se = se;
     for &k in &lay.held_viscous {
         se[lay.nk + k] = 0.0;
     }

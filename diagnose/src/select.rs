@@ -567,6 +567,26 @@ fn unidentified_knots(d: &Prepared, fit: &Fit) -> Vec<UnidentifiedKnot> {
         .collect()
 }
 
+/// The knots of `before` that ran away and are held in `held`
+/// ([`crate::model::hold_unidentified_viscous`]), named as [`unidentified_knots`] names
+/// them, with the value each was given.
+fn held_knots_named(d: &Prepared, before: &Fit, held: &Fit) -> Vec<UnidentifiedKnot> {
+    unidentified_knots(d, before)
+        .into_iter()
+        .filter_map(|mut k| {
+            let q = d.knots.iter().position(|&c| c == k.current_a)?;
+            held.layout.held_viscous.contains(&q).then(|| {
+                k.why = format!(
+                    "{}; held at its neighbours' {:.4e} N s/m",
+                    k.why,
+                    held.theta[held.layout.nk + q]
+                );
+                k
+            })
+        })
+        .collect()
+}
+
 /// `fit`'s model refitted on the held-out blocks alone, from `fit`'s parameters: a second
 /// estimate of every parameter from the other half of the record. `None` where it does
 /// not converge to finite values.
@@ -1591,20 +1611,7 @@ pub fn diagnose_with_progress(
     // predicts no worse); it stays listed as unidentified, with what was done.
     let mut held_knots = Vec::new();
     if let Some(held) = crate::model::hold_unidentified_viscous(&d, &base) {
-        held_knots = unidentified_knots(&d, &base)
-            .into_iter()
-            .filter_map(|mut k| {
-                let q = d.knots.iter().position(|&c| c == k.current_a)?;
-                held.layout.held_viscous.contains(&q).then(|| {
-                    k.why = format!(
-                        "{}; held at its neighbours' {:.4e} N s/m",
-                        k.why,
-                        held.theta[held.layout.nk + q]
-                    );
-                    k
-                })
-            })
-            .collect();
+        held_knots = held_knots_named(&d, &base, &held);
         base = held;
     }
     // The yield softness is a property of the fluid the baseline has settled: candidates
@@ -1746,11 +1753,13 @@ pub fn diagnose_with_progress(
         fluid_shape: sel.fluid_shape,
         unexplained,
         unidentified_knots: {
+            let mut all = held_knots;
             let more: Vec<UnidentifiedKnot> = unidentified_knots(&d, &current)
                 .into_iter()
-                .filter(|k| held_knots.iter().all(|h| h.current_a != k.current_a))
+                .filter(|k| all.iter().all(|h| h.current_a != k.current_a))
                 .collect();
-            held_knots.into_iter().chain(more).collect()
+            all.extend(more);
+            all
         },
         trials: sel.trials,
         final_model: summary(&current),
