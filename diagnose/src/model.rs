@@ -1430,7 +1430,8 @@ pub fn better_basin(d: &Prepared, basins: Vec<Fit>) -> Fit {
 pub const UNIDENTIFIED_KNOT_LIMIT: f64 = 100.0;
 
 /// The baseline with the viscous coefficient of every knot the record left unidentified
-/// (`c V` above [`UNIDENTIFIED_KNOT_LIMIT`] times the peak force) held at its neighbours',
+/// (`c V` above [`UNIDENTIFIED_KNOT_LIMIT`] times the peak force, or c at its floor, no
+/// viscosity at all) held at its neighbours',
 /// interpolated in ln c over the current between the nearest knots with a fitted value
 /// (neither run away nor at the floor), and the rest refitted. Such a knot is a
 /// bi-viscous fluid that never yields at its current within the stroke: its samples are
@@ -1445,7 +1446,9 @@ pub fn hold_unidentified_viscous(d: &Prepared, base: &Fit) -> Option<Fit> {
     let limit = UNIDENTIFIED_KNOT_LIMIT * d.peak_force() / d.velocity_scale.max(1e-12);
     let c = |k: usize| base.theta[nk + k];
     let runaway: Vec<usize> = (0..nk)
-        .filter(|&k| c(k) > limit && !base.layout.held_viscous.contains(&k))
+        .filter(|&k| {
+            (c(k) > limit || c(k) <= 10.0 * C_MIN) && !base.layout.held_viscous.contains(&k)
+        })
         .collect();
     let fitted: Vec<usize> = (0..nk)
         .filter(|&k| c(k) <= limit && c(k) > 10.0 * C_MIN)
