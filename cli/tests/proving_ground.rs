@@ -643,13 +643,6 @@ fn a_field_lag_is_fitted_on_current_steps_the_split_keeps_in_the_fitting_blocks(
     );
 }
 
-/// A record whose fitting blocks do not pin a knot down (proving-ground null seed 81: a
-/// bi-viscous fluid, viscosity ratio 470, under a random current on eight knots; the
-/// 0.935 A knot's viscous coefficient runs to about 10⁹ N s/m, where its force is carried by
-/// the pre-yield ramp). The report must say so (`unidentified_knots`), not only carry a
-/// large held-out RMS, and a real damper's knots must not be flagged. (Until 2026-11-27 this
-/// was null 212, whose two knots ran to 1.9·10⁸ N and 2·10¹⁰ N s/m; the baseline's other
-/// leak basin now predicts it, model::better_basin, and pins both.)
 /// A knot whose viscous coefficient runs away takes its neighbours' (proving-ground null
 /// seed 154: a bi-viscous fluid of viscosity ratio 420 under random held currents, 1.5 s
 /// per level). At 0.586 A and 1.338 A the strokes never leave the fluid's pre-yield ramp,
@@ -698,6 +691,13 @@ fn a_knot_whose_viscous_coefficient_runs_away_takes_its_neighbours() {
     );
 }
 
+/// A record whose fitting blocks do not pin a knot down (proving-ground null seed 81: a
+/// bi-viscous fluid, viscosity ratio 470, under a random current on eight knots; the
+/// 0.935 A knot's viscous coefficient runs to about 10⁹ N s/m, where its force is carried by
+/// the pre-yield ramp). The report must say so (`unidentified_knots`), not only carry a
+/// large held-out RMS, and a real damper's knots must not be flagged. (Until 2026-11-27 this
+/// was null 212, whose two knots ran to 1.9·10⁸ N and 2·10¹⁰ N s/m; the baseline's other
+/// leak basin now predicts it, model::better_basin, and pins both.)
 #[test]
 fn knots_a_record_does_not_identify_are_named() {
     let (_, d) = generate_null_and_diagnose(81);

@@ -1440,7 +1440,8 @@ pub const UNIDENTIFIED_KNOT_LIMIT: f64 = 100.0;
 /// at another speed. The fluid's viscosity changes by a fraction over the current range
 /// (PHYSICS.md: it rises with the current), so its neighbours' value stands in. Kept when
 /// it predicts the held-out blocks no worse ([`better_basin`]); `None` when no knot ran
-/// away or none is left to take the value from.
+/// away or none is left to take the value from. (A knot at the floor is held the same way:
+/// no viscosity at all is not the fluid's either.)
 pub fn hold_unidentified_viscous(d: &Prepared, base: &Fit) -> Option<Fit> {
     let nk = base.layout.nk;
     let limit = UNIDENTIFIED_KNOT_LIMIT * d.peak_force() / d.velocity_scale.max(1e-12);
