@@ -60,6 +60,33 @@ impl UnidentifiedKnot {
     pub const LIMIT: f64 = crate::model::UNIDENTIFIED_KNOT_LIMIT;
 }
 
+/// A current knot whose fitting strokes stay slow: their 95th percentile of |v̂| is below
+/// [`SlowKnot::REACH`] of the speed the record asks of the knot (the same percentile over
+/// its fitting and held-out samples; at least [`SlowKnot::ASKED`] of the record's peak
+/// speed), so the knot's speed curvature c₂ (the
+/// force law's bend at speed) is not fitted there but held at its neighbours'
+/// ([`crate::model::hold_unreached_curvature`]); forces at that current and higher speeds
+/// are predicted with the neighbours' shape.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct SlowKnot {
+    /// The knot's current \[A\].
+    pub current_a: f64,
+    /// The speed its fitting samples reach (95th percentile of |v̂|) \[m/s\].
+    pub reach_m_s: f64,
+    /// The speed the record asks of it (95th percentile of |v̂| over its fitting and
+    /// held-out samples) \[m/s\].
+    pub asked_m_s: f64,
+    /// The speed curvature it was given \[N\] (`c₂ v|v|/V`, V the record's peak speed).
+    pub curvature_n: f64,
+}
+
+impl SlowKnot {
+    /// Share of the speed the record asks of a knot that its fitting samples must reach.
+    pub const REACH: f64 = crate::model::CURVATURE_REACH;
+    /// Share of the record's peak speed the record must ask of the knot.
+    pub const ASKED: f64 = crate::model::CURVATURE_ASKED;
+}
+
 /// A fitted parameter with its 95 % interval.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct Parameter {
@@ -337,6 +364,9 @@ pub struct Report {
     /// Current knots of the final model that the record does not identify (their force
     /// law ran to values no damper has; [`UnidentifiedKnot`]).
     pub unidentified_knots: Vec<UnidentifiedKnot>,
+    /// Current knots whose fitting strokes stay slow, their speed curvature held at their
+    /// neighbours' ([`SlowKnot`]).
+    pub slow_knots: Vec<SlowKnot>,
     /// Every candidate tried.
     pub trials: Vec<Trial>,
     /// The final model.
@@ -476,6 +506,21 @@ pub fn render_markdown(r: &Report) -> String {
         );
         for k in &r.unidentified_knots {
             let _ = writeln!(s, "- {:.3} A: {}", k.current_a, k.why);
+        }
+    }
+    if !r.slow_knots.is_empty() {
+        let _ = writeln!(
+            s,
+            "\n**Current knots fitted on slow strokes only** (below {:.0} % of the speed the \
+             record asks of them; the force law's bend at speed is their neighbours'):\n",
+            100.0 * SlowKnot::REACH
+        );
+        for k in &r.slow_knots {
+            let _ = writeln!(
+                s,
+                "- {:.3} A: fitted to {:.3} m/s, asked {:.3} m/s; speed curvature {:.0} N",
+                k.current_a, k.reach_m_s, k.asked_m_s, k.curvature_n
+            );
         }
     }
     if !r.unexplained.is_empty() {

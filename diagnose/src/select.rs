@@ -587,6 +587,24 @@ fn held_knots_named(d: &Prepared, before: &Fit, held: &Fit) -> Vec<UnidentifiedK
         .collect()
 }
 
+/// The knots whose speed curvature `held` holds at their neighbours'
+/// ([`crate::model::hold_unreached_curvature`]), with the speed their strokes reach and the
+/// curvature each was given.
+fn slow_knots_named(d: &Prepared, held: &Fit) -> Vec<SlowKnot> {
+    let (reach, asked) = crate::model::knot_reach(d);
+    let icv = held.layout.curvature_index();
+    held.layout
+        .held_curvature
+        .iter()
+        .map(|&k| SlowKnot {
+            current_a: d.knots[k],
+            reach_m_s: reach[k],
+            asked_m_s: asked[k],
+            curvature_n: held.theta[icv + k],
+        })
+        .collect()
+}
+
 /// `fit`'s model refitted on the held-out blocks alone, from `fit`'s parameters: a second
 /// estimate of every parameter from the other half of the record. `None` where it does
 /// not converge to finite values.
@@ -1614,6 +1632,13 @@ pub fn diagnose_with_progress(
         held_knots = held_knots_named(&d, &base, &held);
         base = held;
     }
+    // A knot whose fitting strokes stay slow takes its neighbours' speed curvature (kept
+    // when it predicts no worse).
+    let mut slow_knots = Vec::new();
+    if let Some(held) = crate::model::hold_unreached_curvature(&d, &base) {
+        slow_knots = slow_knots_named(&d, &held);
+        base = held;
+    }
     // The yield softness is a property of the fluid the baseline has settled: candidates
     // and their bootstrap replicates hold it (free, it trades with a seal friction, whose
     // smoothed step is the same shape at one current; on proving-ground seed 42 the
@@ -1761,6 +1786,7 @@ pub fn diagnose_with_progress(
             all.extend(more);
             all
         },
+        slow_knots,
         trials: sel.trials,
         final_model: summary(&current),
         final_parameters: base_parameters(&current),
