@@ -1555,14 +1555,14 @@ pub fn knot_reach(d: &Prepared) -> (Vec<f64>, Vec<f64>) {
 
 /// The baseline with the speed curvature c₂ of every knot whose fitting samples stay
 /// below [`CURVATURE_REACH`] of the speed the record asks of that knot (itself at least
-/// [`CURVATURE_ASKED`] of the record's peak speed) held at its
-/// neighbours' (linear in current between the nearest knots whose fitting samples reach
-/// that share of the record's peak speed, the nearest one's beyond them), and the rest
-/// refitted. c₂ shapes the force at speed
-/// (`c₂ v|v|/V`); over a knot's slow strokes alone it trades freely against the knot's c
-/// and the slit law's rise past the yield force, and a stroke at that current but faster
-/// is then predicted from a shape no sample fixed (proving-ground null seed 178: c₂ =
-/// 11.6 kN at a knot fitted to 0.07 m/s, held out at 0.22 m/s, 1.1 kN over the force).
+/// [`CURVATURE_ASKED`] of the record's peak speed) held at its neighbours' (linear in
+/// current between the nearest knots whose fitting samples reach that share of the
+/// record's peak speed, the nearest one's beyond them), and the rest refitted. c₂ shapes
+/// the force at speed (`c₂ v|v|/V`); over a knot's slow strokes alone it trades freely
+/// against the knot's c and the slit law's rise past the yield force, and a stroke at that
+/// current but faster is then predicted from a shape no sample fixed (proving-ground null
+/// seed 178: c₂ = 11.6 kN at a knot fitted to 0.07 m/s, held out at 0.22 m/s, 1.1 kN over
+/// the force).
 /// The fluid's speed law changes slowly with the current, so the knots fitted at speed
 /// stand in (a knot only ever driven slowly keeps its own c₂, which shapes nothing it is
 /// asked, and lends it to none). Kept when it predicts the held-out blocks no worse;

@@ -63,10 +63,9 @@ impl UnidentifiedKnot {
 /// A current knot whose fitting strokes stay slow: their 95th percentile of |v̂| is below
 /// [`SlowKnot::REACH`] of the speed the record asks of the knot (the same percentile over
 /// its fitting and held-out samples; at least [`SlowKnot::ASKED`] of the record's peak
-/// speed), so the knot's speed curvature c₂ (the
-/// force law's bend at speed) is not fitted there but held at its neighbours'
-/// ([`crate::model::hold_unreached_curvature`]); forces at that current and higher speeds
-/// are predicted with the neighbours' shape.
+/// speed), so the knot's speed curvature c₂ (the force law's bend at speed) is not fitted
+/// there but held at its neighbours' ([`crate::model::hold_unreached_curvature`]); forces
+/// at that current and higher speeds are predicted with the neighbours' shape.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct SlowKnot {
     /// The knot's current \[A\].

@@ -534,55 +534,59 @@ fn effect_parameters_with_halves(
 /// The knots of `fit` whose `c V` (V the record's peak speed) or `F_y` exceed
 /// [`UnidentifiedKnot::LIMIT`] times the record's peak force.
 fn unidentified_knots(d: &Prepared, fit: &Fit) -> Vec<UnidentifiedKnot> {
-    let peak = d.peak_force();
-    let nk = fit.layout.nk;
-    let limit = UnidentifiedKnot::LIMIT * peak;
-    (0..nk)
-        .filter_map(|k| {
-            let (fy, c) = (fit.theta[k], fit.theta[nk + k]);
-            let cv = c * d.velocity_scale;
-            let why = if cv > limit {
-                format!(
-                    "its viscous coefficient ran to {c:.3e} N s/m, {:.0} times the record's \
-                     peak force of {peak:.0} N at its peak speed of {:.3} m/s",
-                    cv / peak,
-                    d.velocity_scale
-                )
-            } else if fy > limit {
-                format!(
-                    "its yield force ran to {fy:.3e} N, {:.0} times the record's peak force of \
-                     {peak:.0} N (the fluid may never yield there)",
-                    fy / peak
-                )
-            } else {
-                return None;
-            };
-            Some(UnidentifiedKnot {
-                current_a: d.knots[k],
-                yield_force_n: fy,
-                viscous_n_s_m: c,
-                why,
-            })
-        })
+    (0..fit.layout.nk)
+        .filter_map(|k| unidentified_knot(d, fit, k))
         .collect()
+}
+
+/// Knot `k` of `fit`, named when its `c V` or `F_y` exceeds [`UnidentifiedKnot::LIMIT`]
+/// times the record's peak force ([`unidentified_knots`]).
+fn unidentified_knot(d: &Prepared, fit: &Fit, k: usize) -> Option<UnidentifiedKnot> {
+    let peak = d.peak_force();
+    let limit = UnidentifiedKnot::LIMIT * peak;
+    let (fy, c) = (fit.theta[k], fit.theta[fit.layout.nk + k]);
+    let cv = c * d.velocity_scale;
+    let why = if cv > limit {
+        format!(
+            "its viscous coefficient ran to {c:.3e} N s/m, {:.0} times the record's \
+             peak force of {peak:.0} N at its peak speed of {:.3} m/s",
+            cv / peak,
+            d.velocity_scale
+        )
+    } else if fy > limit {
+        format!(
+            "its yield force ran to {fy:.3e} N, {:.0} times the record's peak force of \
+             {peak:.0} N (the fluid may never yield there)",
+            fy / peak
+        )
+    } else {
+        return None;
+    };
+    Some(UnidentifiedKnot {
+        current_a: d.knots[k],
+        yield_force_n: fy,
+        viscous_n_s_m: c,
+        why,
+    })
 }
 
 /// The knots of `before` that ran away and are held in `held`
 /// ([`crate::model::hold_unidentified_viscous`]), named as [`unidentified_knots`] names
-/// them, with the value each was given.
+/// them, with the value each was given (a knot held because its c sat at the floor did
+/// not run away and is not named).
 fn held_knots_named(d: &Prepared, before: &Fit, held: &Fit) -> Vec<UnidentifiedKnot> {
-    unidentified_knots(d, before)
-        .into_iter()
-        .filter_map(|mut k| {
-            let q = d.knots.iter().position(|&c| c == k.current_a)?;
-            held.layout.held_viscous.contains(&q).then(|| {
-                k.why = format!(
-                    "{}; held at its neighbours' {:.4e} N s/m",
-                    k.why,
-                    held.theta[held.layout.nk + q]
-                );
-                k
-            })
+    let nk = held.layout.nk;
+    held.layout
+        .held_viscous
+        .iter()
+        .filter_map(|&q| {
+            let mut k = unidentified_knot(d, before, q)?;
+            k.why = format!(
+                "{}; held at its neighbours' {:.4e} N s/m",
+                k.why,
+                held.theta[nk + q]
+            );
+            Some(k)
         })
         .collect()
 }
