@@ -468,6 +468,17 @@ pub fn knot_weights(knots: &[f64], i: f64) -> (usize, f64, f64) {
     (k, (i - knots[k]) / w, 1.0 / w)
 }
 
+/// The knot nearest current `i` by interpolation weight: the one [`knot_weights`] gives at
+/// least half the weight.
+pub fn nearest_knot(knots: &[f64], i: f64) -> usize {
+    let (k, lam, _) = knot_weights(knots, i);
+    if lam > 0.5 {
+        (k + 1).min(knots.len() - 1)
+    } else {
+        k
+    }
+}
+
 /// Two currents closer than this are one level: 2 % of the largest |I|, at least 1 mA.
 pub fn level_tolerance(i: &[f64]) -> f64 {
     let imax = i.iter().fold(0.0f64, |m, x| m.max(x.abs()));

@@ -30,7 +30,7 @@ use numerics::least_squares::{levenberg_marquardt, LmOptions};
 use twin::Effect;
 
 use crate::bingham;
-use crate::data::{knot_weights, Prepared};
+use crate::data::{knot_weights, nearest_knot, Prepared};
 use crate::subsample::Channels;
 
 /// Where each parameter lives in the parameter vector.
@@ -1268,9 +1268,7 @@ fn relative_leak_start(d: &Prepared, lay: &Layout, base: &[f64]) -> Vec<f64> {
         if !d.train[j] || d.h[j] <= 0.0 {
             continue;
         }
-        let (k, lam, _) = knot_weights(&d.knots, d.i[j]);
-        let k = if lam > 0.5 { (k + 1).min(nk - 1) } else { k };
-        members[k].push(j);
+        members[nearest_knot(&d.knots, d.i[j])].push(j);
     }
     // The leaky law at sample j for q = (ln F_y, ln c, offset), and its gradient in q:
     // v_ε = √(velocity error² + (λ F_y/c)²) moves with F_y and c.
@@ -1534,9 +1532,7 @@ pub fn knot_speed_reach(d: &Prepared, which: impl Fn(usize) -> bool) -> Vec<f64>
     let nk = d.knots.len();
     let mut speeds: Vec<Vec<f64>> = vec![Vec::new(); nk];
     for j in (0..d.len()).filter(|&j| which(j)) {
-        let (k, lam, _) = knot_weights(&d.knots, d.i[j]);
-        let q = if lam > 0.5 { (k + 1).min(nk - 1) } else { k };
-        speeds[q].push(d.v[j].abs());
+        speeds[nearest_knot(&d.knots, d.i[j])].push(d.v[j].abs());
     }
     speeds
         .iter_mut()
@@ -1544,13 +1540,20 @@ pub fn knot_speed_reach(d: &Prepared, which: impl Fn(usize) -> bool) -> Vec<f64>
         .collect()
 }
 
-/// Per knot, the speed its fitting samples reach and the speed the record asks of it
-/// (fitting and held-out samples together), by [`knot_speed_reach`].
-pub fn knot_reach(d: &Prepared) -> (Vec<f64>, Vec<f64>) {
-    (
-        knot_speed_reach(d, |j| d.train[j]),
-        knot_speed_reach(d, |j| d.train[j] || d.holdout[j]),
-    )
+/// Per knot, the speed its fitting samples reach and the speed the record asks of it.
+pub struct KnotReach {
+    /// Over the fitting samples \[m/s\] ([`knot_speed_reach`]).
+    pub fitted: Vec<f64>,
+    /// Over the fitting and held-out samples together \[m/s\].
+    pub asked: Vec<f64>,
+}
+
+/// The record's [`KnotReach`].
+pub fn knot_reach(d: &Prepared) -> KnotReach {
+    KnotReach {
+        fitted: knot_speed_reach(d, |j| d.train[j]),
+        asked: knot_speed_reach(d, |j| d.train[j] || d.holdout[j]),
+    }
 }
 
 /// The baseline with the speed curvature c₂ of every knot whose fitting samples stay
@@ -1566,10 +1569,14 @@ pub fn knot_reach(d: &Prepared) -> (Vec<f64>, Vec<f64>) {
 /// The fluid's speed law changes slowly with the current, so the knots fitted at speed
 /// stand in (a knot only ever driven slowly keeps its own c₂, which shapes nothing it is
 /// asked, and lends it to none). Kept when it predicts the held-out blocks no worse;
-/// `None` when every knot reaches its speeds or none is fitted at speed.
-pub fn hold_unreached_curvature(d: &Prepared, base: &Fit) -> Option<Fit> {
+/// `None` when every knot reaches its speeds or none is fitted at speed. `reach` is
+/// [`knot_reach`] of `d`.
+pub fn hold_unreached_curvature(d: &Prepared, base: &Fit, reach: &KnotReach) -> Option<Fit> {
     let nk = base.layout.nk;
-    let (reach, asked) = knot_reach(d);
+    let KnotReach {
+        fitted: reach,
+        asked,
+    } = reach;
     let icv = base.layout.curvature_index();
     let slow: Vec<usize> = (0..nk)
         .filter(|&k| {

@@ -593,17 +593,16 @@ fn held_knots_named(d: &Prepared, before: &Fit, held: &Fit) -> Vec<UnidentifiedK
 
 /// The knots whose speed curvature `held` holds at their neighbours'
 /// ([`crate::model::hold_unreached_curvature`]), with the speed their strokes reach and the
-/// curvature each was given.
-fn slow_knots_named(d: &Prepared, held: &Fit) -> Vec<SlowKnot> {
-    let (reach, asked) = crate::model::knot_reach(d);
+/// curvature each was given (`reach` the one the hold was decided on).
+fn slow_knots_named(d: &Prepared, held: &Fit, reach: &crate::model::KnotReach) -> Vec<SlowKnot> {
     let icv = held.layout.curvature_index();
     held.layout
         .held_curvature
         .iter()
         .map(|&k| SlowKnot {
             current_a: d.knots[k],
-            reach_m_s: reach[k],
-            asked_m_s: asked[k],
+            reach_m_s: reach.fitted[k],
+            asked_m_s: reach.asked[k],
             curvature_n: held.theta[icv + k],
         })
         .collect()
@@ -1639,8 +1638,9 @@ pub fn diagnose_with_progress(
     // A knot whose fitting strokes stay slow takes its neighbours' speed curvature (kept
     // when it predicts no worse).
     let mut slow_knots = Vec::new();
-    if let Some(held) = crate::model::hold_unreached_curvature(&d, &base) {
-        slow_knots = slow_knots_named(&d, &held);
+    let reach = crate::model::knot_reach(&d);
+    if let Some(held) = crate::model::hold_unreached_curvature(&d, &base, &reach) {
+        slow_knots = slow_knots_named(&d, &held, &reach);
         base = held;
     }
     // The yield softness is a property of the fluid the baseline has settled: candidates
