@@ -12,26 +12,32 @@ rclpy.init()
 node = rclpy.create_node("mrtwin_param_probe")
 client = AsyncParameterClient(node, target)
 out = {}
-def wait(fut, what):
-    rclpy.spin_until_future_complete(node, fut, timeout_sec=15)
-    if not fut.done():
-        raise SystemExit(f"no answer to {what} within 15 s")
-    return fut.result()
+def wait(request, what, tries=3, each_s=10):
+    """Sends `request()` and returns its answer; sends it again when none comes within each_s.
+    A reply sent before the server's reply writer has matched this client's reply reader is
+    lost (a DDS discovery race that wait_for_services does not close: it sees only the request
+    side), so under load the first request can go unanswered. Every request here is idempotent."""
+    for _ in range(tries):
+        fut = request()
+        rclpy.spin_until_future_complete(node, fut, timeout_sec=each_s)
+        if fut.done():
+            return fut.result()
+    raise SystemExit(f"no answer to {what} in {tries} tries of {each_s} s")
 out["services"] = client.wait_for_services(timeout_sec=30)
 # By section: the reply to an unprefixed list (~95 names, > one datagram) is fragmented by
 # RustDDS and never reaches a Fast DDS client (see docs/node.md, "ROS 2 parameters").
-names = [n for p in ["health", "estimator", "two_chamber", "model", "damper", "stale_after_s"] for n in wait(client.list_parameters([p], 0), "list " + p).result.names]
+names = [n for p in ["health", "estimator", "two_chamber", "model", "damper", "stale_after_s"] for n in wait(lambda: client.list_parameters([p], 0), "list " + p).result.names]
 out["names"] = len(names)
 out["has"] = {n: n in names for n in ["health.residual.warn", "estimator.settings.memory_s",
                                       "two_chamber.bulk_modulus_pa", "model", "damper"]}
 def get(name):
-    v = wait(client.get_parameters([name]), "get").values[0]
+    v = wait(lambda: client.get_parameters([name]), "get").values[0]
     return {"type": v.type, "double": v.double_value, "string": v.string_value}
 out["stale_before"] = get("stale_after_s")
-d = wait(client.describe_parameters(["stale_after_s"]), "describe").descriptors[0]
+d = wait(lambda: client.describe_parameters(["stale_after_s"]), "describe").descriptors[0]
 out["described"] = d.name
 def set_(name, value):
-    r = wait(client.set_parameters([Parameter(name, value=value)]), "set").results[0]
+    r = wait(lambda: client.set_parameters([Parameter(name, value=value)]), "set").results[0]
     return {"ok": r.successful, "reason": r.reason}
 out["bad"] = set_("stale_after_s", -1.0)
 out["bad_type"] = set_("stale_after_s", "soon")

@@ -19,30 +19,36 @@ phase = [0]
 node.create_subscription(DamperSample, f"{ns}/sensor/sample",
                          lambda m: samples.append([phase[0], m.current, m.force]),
                          QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT))
-def wait(fut, what):
-    rclpy.spin_until_future_complete(node, fut, timeout_sec=15)
-    if not fut.done():
-        raise SystemExit(f"no answer to {what} within 15 s")
-    return fut.result()
+def wait(request, what, tries=3, each_s=10):
+    """Sends `request()` and returns its answer; sends it again when none comes within each_s.
+    A reply sent before the server's reply writer has matched this client's reply reader is
+    lost (a DDS discovery race that wait_for_services does not close: it sees only the request
+    side), so under load the first request can go unanswered. Every request here is idempotent."""
+    for _ in range(tries):
+        fut = request()
+        rclpy.spin_until_future_complete(node, fut, timeout_sec=each_s)
+        if fut.done():
+            return fut.result()
+    raise SystemExit(f"no answer to {what} in {tries} tries of {each_s} s")
 def spin(seconds):
     end = time.time() + seconds
     while time.time() < end:
         rclpy.spin_once(node, timeout_sec=0.05)
 out["services"] = client.wait_for_services(timeout_sec=30)
 prefixes = ["currents_a", "noise_n", "faults", "two_chamber", "rate_hz", "seed", "damper"]
-names = [n for p in prefixes for n in wait(client.list_parameters([p], 0), "list " + p).result.names]
+names = [n for p in prefixes for n in wait(lambda: client.list_parameters([p], 0), "list " + p).result.names]
 out["has"] = {n: n in names for n in ["currents_a", "noise_n", "faults.drop_probability",
                                       "two_chamber.load_cell_offset_n", "rate_hz", "seed", "damper"]}
 def get(name):
-    v = wait(client.get_parameters([name]), "get").values[0]
+    v = wait(lambda: client.get_parameters([name]), "get").values[0]
     return {"type": v.type, "double": v.double_value, "doubles": list(v.double_array_value)}
 def set_(name, value):
     phase[0] = 1
-    r = wait(client.set_parameters([Parameter(name, value=value)]), "set").results[0]
+    r = wait(lambda: client.set_parameters([Parameter(name, value=value)]), "set").results[0]
     phase[0] = 2
     return {"ok": r.successful, "reason": r.reason}
 out["currents_before"] = get("currents_a")["doubles"]
-out["described"] = wait(client.describe_parameters(["noise_n"]), "describe").descriptors[0].name
+out["described"] = wait(lambda: client.describe_parameters(["noise_n"]), "describe").descriptors[0].name
 out["noise_before"] = get("noise_n")["double"]
 out["bad_noise"] = set_("noise_n", -1.0)
 out["bad_rate"] = set_("rate_hz", 2000.0)
