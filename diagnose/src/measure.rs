@@ -530,7 +530,7 @@ pub fn erf(x: f64) -> f64 {
 
 /// Nodes and weights of 9-point Gauss–Hermite quadrature (probabilists' form: ∫ g(x) φ(x)
 /// dx ≈ Σ w_k g(x_k) for the standard normal density φ).
-const HERMITE9: [(f64, f64); 9] = [
+pub(crate) const HERMITE9: [(f64, f64); 9] = [
     (-4.512_745_863_399_783, 2.234_584_400_774_66e-5),
     (-3.205_429_002_856_47, 2.789_141_321_231_77e-3),
     (-2.076_847_978_677_83, 4.991_640_676_521_79e-2),

@@ -978,13 +978,16 @@ fn fluid_law_at<'a>(d: &'a Prepared, base: &'a Fit) -> impl Fn(usize, f64) -> f6
 /// the force variance the rebuilt velocity's error e ~ N(0, (κ σ_v̂)²) causes through the
 /// fitted law (large only where the sign of v is uncertain), σ_F the robust scale
 /// (1.4826 MAD) of the baseline's residual where that sign is certain (|v̂| > 4 σ_v̂), κ
-/// from [`velocity_error_scale`]. This makes the fit an errors-in-variables (weighted)
-/// least squares and every error figure noise-equivalent.
+/// from [`velocity_error_scale`]; behind an anti-alias filter, the larger of that and
+/// [`filtered_velocity_error_variance`] (the jump's edge the filter spreads). This makes the
+/// fit an errors-in-variables (weighted) least squares and every error figure
+/// noise-equivalent.
 pub fn predictive_weights(d: &Prepared, base: &Fit, kappa: f64) -> Vec<f64> {
     let Some(sf2) = certain_sign_force_variance(d, base) else {
         return vec![1.0; d.len()];
     };
     let law = fluid_law_at(d, base);
+    let through_filter = filtered_velocity_error_variance(d, base, kappa);
     (0..d.len())
         .map(|j| {
             let var = crate::measure::variance_under_velocity_error(
@@ -992,9 +995,50 @@ pub fn predictive_weights(d: &Prepared, base: &Fit, kappa: f64) -> Vec<f64> {
                 d.v[j],
                 kappa * d.v_sigma[j],
             );
+            let var = through_filter.as_ref().map_or(var, |t| var.max(t[j]));
             sf2 / (sf2 + var)
         })
         .collect()
+}
+
+/// Behind the anti-alias filter, the variance of `base`'s whole prediction (sub-sample
+/// evaluation and filter) under a velocity error common to neighbouring samples,
+/// e_j = z κ σ_v̂,j with one z ~ N(0, 1) (9-point Gauss–Hermite over z); `None` without a
+/// filter. The rebuilt velocity's error is a local fit's, shared by the samples its window
+/// spans, and it moves the instant of reversal: the filter spreads the 2 F_y jump over
+/// the samples around it, so a sample whose own velocity is many σ from zero still sits
+/// on the filtered jump's edge, and its force moves by (jump slope) × e / |a|.
+fn filtered_velocity_error_variance(d: &Prepared, base: &Fit, kappa: f64) -> Option<Vec<f64>> {
+    d.anti_alias.as_ref()?;
+    let nodes = crate::measure::HERMITE9;
+    let forces = numerics::parallel::map_indexed(nodes.len(), 2, |k| {
+        let z = nodes[k].0 * kappa;
+        if z == 0.0 {
+            return base.force.clone();
+        }
+        let mut shifted = d.clone();
+        for (v, s) in shifted.v.iter_mut().zip(&d.v_sigma) {
+            *v += z * s;
+        }
+        let g = &mut shifted.subgrid;
+        for (v, s) in g.v.iter_mut().zip(&d.subgrid.v_sigma) {
+            *v += z * s;
+        }
+        evaluate(&shifted, &base.layout, &base.theta, false).force
+    });
+    Some(
+        (0..d.len())
+            .map(|j| {
+                let (mut m1, mut m2) = (0.0, 0.0);
+                for (k, &(_, w)) in nodes.iter().enumerate() {
+                    let y = forces[k][j];
+                    m1 += w * y;
+                    m2 += w * y * y;
+                }
+                (m2 - m1 * m1).max(0.0)
+            })
+            .collect(),
+    )
 }
 
 /// Candidate scales κ of the velocity error (× σ_v̂), smallest first.

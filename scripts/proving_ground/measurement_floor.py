@@ -12,8 +12,16 @@ parameters (no hidden effect) and compare with the recorded force, in σ_F:
 
     .venv/bin/python scripts/proving_ground/measurement_floor.py 20 21 22 41 57
 
-docs/diagnose.md (Limits) quotes its output.
+With `--residuals DIR` (files DIR/NNNN.res.csv from `mrtwin diagnose --residuals`), also the
+rebuilt velocity against the noise-free filtered one (RMS error over the stated σ near
+reversal, |v| < 10 % of the peak) and the fine ×8 floor at the *rebuilt* velocity:
+
+    .venv/bin/python scripts/proving_ground/measurement_floor.py --residuals /tmp/res 238 30 52
+
+docs/diagnose.md (Limits) and BENCHMARKS.md (issue 10, session 59) quote its output.
 """
+import csv
+import os
 import sys
 
 import numpy as np
@@ -35,7 +43,19 @@ def coarse_filter(u, fc_per_fs):
     return np.interp(np.arange(len(u)) + delay, np.arange(len(u)), z)
 
 
-def main(seeds):
+def fine_filtered(vf, xf, If, fs, fc, p, M):
+    """The law on an M× finer grid (linear interpolation), filtered there, decimated."""
+    n = len(vf)
+    tf = np.arange((n - 1) * M + 1) / M
+    vi, xi, Ii = (np.interp(tf, np.arange(n), y) for y in (vf, xf, If))
+    ff = physics.simulate(xi, vi, np.gradient(vi, 1 / (fs * M)), Ii, 1 / (fs * M), p)[0]
+    sos2 = signal.butter(2, fc, fs=fs * M, output="sos")
+    z = signal.sosfilt(sos2, ff, zi=signal.sosfilt_zi(sos2) * ff[0])[0]
+    d = np.sqrt(2) / (2 * np.pi * fc) * fs * M
+    return np.interp(np.arange(len(z)) + d, np.arange(len(z)), z)[::M]
+
+
+def main(seeds, residuals=None):
     for seed in seeds:
         meta, rec, fl, p, exc, t, x, v, a, icmd = g.base_law_rig(seed)  # the law alone
         meas = meta["measurement"]
@@ -52,17 +72,26 @@ def main(seeds):
                 f"noise {rms(f_rec - truth):.2f}, coarse no filter {rms(f_rec - coarse):.2f}, "
                 f"coarse filtered {rms(f_rec - coarse_filter(coarse, fc / fs)):.2f}")
         for M in (2, 8):
-            n = len(vf)
-            tf = np.arange((n - 1) * M + 1) / M
-            vi, xi, Ii = (np.interp(tf, np.arange(n), y) for y in (vf, xf, If))
-            ff = physics.simulate(xi, vi, np.gradient(vi, 1 / (fs * M)), Ii, 1 / (fs * M), p)[0]
-            sos2 = signal.butter(2, fc, fs=fs * M, output="sos")
-            z = signal.sosfilt(sos2, ff, zi=signal.sosfilt_zi(sos2) * ff[0])[0]
-            d = np.sqrt(2) / (2 * np.pi * fc) * fs * M
-            zz = np.interp(np.arange(len(z)) + d, np.arange(len(z)), z)[::M]
+            zz = fine_filtered(vf, xf, If, fs, fc, p, M)
             line += f", fine x{M} filtered {rms(f_rec[: len(zz)] - zz):.2f}"
+        path = residuals and os.path.join(residuals, f"{seed:04d}.res.csv")
+        if path and os.path.exists(path):
+            with open(path) as f:
+                rows = list(csv.DictReader(f))
+            vh = np.array([float(r["velocity_m_s"]) for r in rows])
+            sv = np.array([float(r["velocity_sigma_m_s"]) for r in rows])
+            n = len(vh)
+            near = np.abs(vf[:n]) < 0.1 * np.max(np.abs(vf[:n]))
+            z = (vh - vf[:n])[near] / sv[near]
+            zz = fine_filtered(vh, xf[:n], If[:n], fs, fc, p, 8)
+            line += (f"; rebuilt velocity: error {np.sqrt(np.mean(z ** 2)):.2f} stated σ near "
+                     f"reversal, fine x8 filtered {rms(f_rec[: len(zz)] - zz):.2f}")
         print(line)
 
 
 if __name__ == "__main__":
-    main([int(s) for s in sys.argv[1:]] or [20, 21, 22, 41, 57])
+    args = sys.argv[1:]
+    res = None
+    if args[:1] == ["--residuals"]:
+        res, args = args[1], args[2:]
+    main([int(s) for s in args] or [20, 21, 22, 41, 57], res)
