@@ -23,7 +23,10 @@ fn mrtwin() -> Command {
 
 /// argv: target node, `force` to also check that a set takes effect at the next sample
 /// (the demo publishes `/twin/predicted_force`). Prints one JSON line.
-const CLIENT: &str = include_str!("ros2_parameters_client.py");
+const CLIENT: &str = concat!(
+    include_str!("ros2_parameters_ask.py"),
+    include_str!("ros2_parameters_client.py")
+);
 
 fn client(domain: &str, target: &str, force: bool) -> Value {
     let out = run_python_env(
@@ -135,7 +138,10 @@ fn rclpy_reads_and_sets_the_parameters_of_mrtwin_node() {
 }
 
 /// argv: target node, namespace. Reads the stand's samples as native `mrtwin_msgs`.
-const STAND_CLIENT: &str = include_str!("ros2_stand_parameters_client.py");
+const STAND_CLIENT: &str = concat!(
+    include_str!("ros2_parameters_ask.py"),
+    include_str!("ros2_stand_parameters_client.py")
+);
 
 #[test]
 fn rclpy_reads_and_sets_the_parameters_of_mrtwin_stand_and_the_samples_follow() {

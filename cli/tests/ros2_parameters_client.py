@@ -12,17 +12,8 @@ rclpy.init()
 node = rclpy.create_node("mrtwin_param_probe")
 client = AsyncParameterClient(node, target)
 out = {}
-def wait(request, what, tries=3, each_s=10):
-    """Sends `request()` and returns its answer; sends it again when none comes within each_s.
-    A reply sent before the server's reply writer has matched this client's reply reader is
-    lost (a DDS discovery race that wait_for_services does not close: it sees only the request
-    side), so under load the first request can go unanswered. Every request here is idempotent."""
-    for _ in range(tries):
-        fut = request()
-        rclpy.spin_until_future_complete(node, fut, timeout_sec=each_s)
-        if fut.done():
-            return fut.result()
-    raise SystemExit(f"no answer to {what} in {tries} tries of {each_s} s")
+def wait(request, what):
+    return ask(node, request, what)  # ros2_parameters_ask.py, prepended
 out["services"] = client.wait_for_services(timeout_sec=30)
 # By section: the reply to an unprefixed list (~95 names, > one datagram) is fragmented by
 # RustDDS and never reaches a Fast DDS client (see docs/node.md, "ROS 2 parameters").
