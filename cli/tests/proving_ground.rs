@@ -138,11 +138,16 @@ fn generate_and_diagnose_with_residuals(
 /// [`generate_and_diagnose`] for a scenario that must be a null (nothing hidden).
 fn generate_null_and_diagnose(seed: u32) -> (serde_json::Value, serde_json::Value) {
     let (m, d) = generate_and_diagnose(seed);
+    assert_null(seed, &m);
+    (m, d)
+}
+
+/// Scenario `seed` (its meta JSON `m`) hides nothing.
+fn assert_null(seed: u32, m: &serde_json::Value) {
     assert!(
         m["hidden"].as_array().unwrap().is_empty(),
         "seed {seed} is a null"
     );
-    (m, d)
 }
 
 /// A null's diagnosis reports no finding.
@@ -774,10 +779,7 @@ fn a_knot_fitted_on_slow_strokes_takes_its_neighbours_speed_curvature() {
 #[allow(clippy::needless_range_loop)]
 fn a_sample_on_the_filtered_edge_of_a_reversal_is_weighted_by_its_timing_error() {
     let (m, d, residuals) = generate_and_diagnose_with_residuals(238);
-    assert!(
-        m["hidden"].as_array().unwrap().is_empty(),
-        "seed 238 is a null"
-    );
+    assert_null(238, &m);
     assert_reports_nothing(238, &d);
     let kappa = d["measurement"]["velocity_error_scale"].as_f64().unwrap();
     let mut lines = residuals.lines();

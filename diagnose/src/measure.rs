@@ -549,9 +549,15 @@ pub fn variance_under_velocity_error(g: impl Fn(f64) -> f64, v: f64, sigma: f64)
     if sigma <= 0.0 {
         return 0.0;
     }
+    hermite_variance(|x| g(v + sigma * x))
+}
+
+/// Variance of `y(z)`, z ~ N(0, 1), by [`HERMITE9`]: `y` is called once at each node, in
+/// order.
+pub(crate) fn hermite_variance(mut y: impl FnMut(f64) -> f64) -> f64 {
     let (mut m1, mut m2) = (0.0, 0.0);
     for (x, w) in HERMITE9 {
-        let y = g(v + sigma * x);
+        let y = y(x);
         m1 += w * y;
         m2 += w * y * y;
     }

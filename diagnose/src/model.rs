@@ -1029,13 +1029,8 @@ fn filtered_velocity_error_variance(d: &Prepared, base: &Fit, kappa: f64) -> Opt
     Some(
         (0..d.len())
             .map(|j| {
-                let (mut m1, mut m2) = (0.0, 0.0);
-                for (k, &(_, w)) in nodes.iter().enumerate() {
-                    let y = forces[k][j];
-                    m1 += w * y;
-                    m2 += w * y * y;
-                }
-                (m2 - m1 * m1).max(0.0)
+                let mut node = forces.iter();
+                crate::measure::hermite_variance(|_| node.next().expect("a force per node")[j])
             })
             .collect(),
     )
