@@ -18,9 +18,14 @@ elif [ -n "${MRTWIN_ROS_DISTRO:-}" ]; then
   echo "error: MRTWIN_ROS_DISTRO=${MRTWIN_ROS_DISTRO}: only 'jazzy' (or unset for the default wheels)" >&2
   exit 2
 else
+  # The proving ground's numerics are pinned: its scenarios are numba-compiled floating
+  # point, and a study is only comparable with another on the same scenario files
+  # (scripts/proving_ground/README.md, "Reproducibility").
   packages=(ros-rclpy ros-std-msgs ros-diagnostic-msgs ros-rmw-fastrtps-cpp ros-rosgraph-msgs
-            eclipse-zenoh rosbags mcap mcap-ros2-support websockets numpy scipy numba pillow)
-  check='import rclpy, std_msgs.msg, diagnostic_msgs.msg, rosgraph_msgs.msg, zenoh, rosbags, mcap, mcap_ros2, websockets, numpy, scipy, numba, PIL'
+            eclipse-zenoh rosbags mcap mcap-ros2-support websockets
+            numpy==2.4.6 scipy==1.17.1 numba==0.68.1 pillow)
+  check='import rclpy, std_msgs.msg, diagnostic_msgs.msg, rosgraph_msgs.msg, zenoh, rosbags, mcap, mcap_ros2, websockets, numpy, scipy, numba, PIL
+assert (numpy.__version__, scipy.__version__, numba.__version__) == ("2.4.6", "1.17.1", "0.68.1")'
 fi
 if [ -x "$venv/bin/python" ] && "$venv/bin/python" -c "$check" 2>/dev/null; then
   echo "venv $venv ready"

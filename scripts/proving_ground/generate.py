@@ -595,6 +595,14 @@ def write_csv(path, rec):
     np.savetxt(path, arr, delimiter=",", header=",".join(cols), comments="", fmt="%.9g")
 
 
+def library_versions():
+    """The numerics the scenarios are computed with: a seed's file is reproducible bit for
+    bit only with the same versions (pinned in scripts/setup-venv.sh)."""
+    import numba
+    import scipy
+    return {"numpy": np.__version__, "scipy": scipy.__version__, "numba": numba.__version__}
+
+
 def _jsonable(o):
     if isinstance(o, dict):
         return {k: _jsonable(v) for k, v in o.items()}

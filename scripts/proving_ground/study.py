@@ -321,12 +321,16 @@ def main():
         head.append(f"Selectors rejected by the binary and skipped: {', '.join(unsupported)}.\n")
     if gens:
         head.append(f"Generation: {statistics.mean(gens):.2f} s CPU per scenario (mean of {len(gens)}).\n")
+    libs = generate.library_versions()
+    head.append("Generator libraries (scenario files depend on them): "
+                + ", ".join(f"{k} {v}" for k, v in libs.items()) + ".\n")
     if n_reused:
         head.append(f"{n_reused} of {n_runs} diagnose runs were reused from earlier runs of the same binary "
                     "(`--resume`); their wall times are those measured then.\n")
     md = "\n".join(head) + "\n" + md_body
     with open(os.path.join(out, "results.json"), "w") as f:
-        json.dump(dict(seeds=seeds, records=records, summary=summary), f, indent=1, default=str)
+        json.dump(dict(seeds=seeds, records=records, summary=summary, generator_libraries=libs),
+                  f, indent=1, default=str)
     if args.markdown:
         with open(args.markdown, "w") as f:
             f.write(md)
