@@ -20,12 +20,15 @@ elif [ -n "${MRTWIN_ROS_DISTRO:-}" ]; then
 else
   # The proving ground's numerics are pinned: its scenarios are numba-compiled floating
   # point, and a study is only comparable with another on the same scenario files
-  # (scripts/proving_ground/README.md, "Reproducibility").
+  # (scripts/proving_ground/README.md, "Reproducibility"). The check below asserts them.
+  pins=(numpy==2.4.6 scipy==1.17.1 numba==0.68.1)
   packages=(ros-rclpy ros-std-msgs ros-diagnostic-msgs ros-rmw-fastrtps-cpp ros-rosgraph-msgs
-            eclipse-zenoh rosbags mcap mcap-ros2-support websockets
-            numpy==2.4.6 scipy==1.17.1 numba==0.68.1 pillow)
-  check='import rclpy, std_msgs.msg, diagnostic_msgs.msg, rosgraph_msgs.msg, zenoh, rosbags, mcap, mcap_ros2, websockets, numpy, scipy, numba, PIL
-assert (numpy.__version__, scipy.__version__, numba.__version__) == ("2.4.6", "1.17.1", "0.68.1")'
+            eclipse-zenoh rosbags mcap mcap-ros2-support websockets "${pins[@]}" pillow)
+  check="import rclpy, std_msgs.msg, diagnostic_msgs.msg, rosgraph_msgs.msg, zenoh, rosbags, mcap, mcap_ros2, websockets, numpy, scipy, numba, PIL
+from importlib.metadata import version
+for pin in '${pins[*]}'.split():
+    name, want = pin.split('==')
+    assert version(name) == want, f'{name} {version(name)}, pinned {want}'"
 fi
 if [ -x "$venv/bin/python" ] && "$venv/bin/python" -c "$check" 2>/dev/null; then
   echo "venv $venv ready"
