@@ -240,14 +240,21 @@ def summarise(records, selectors, label_of):
 
 
 def parse_seeds(s):
-    a, b = s.split(":")
-    return list(range(int(a), int(b)))
+    """`A:B` (B exclusive), a single seed, or a comma-separated list of either."""
+    out = []
+    for part in s.split(","):
+        if ":" in part:
+            a, b = part.split(":")
+            out.extend(range(int(a), int(b)))
+        else:
+            out.append(int(part))
+    return out
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("-n", type=int, default=300, help="number of scenarios, seeds 0..N-1")
-    ap.add_argument("--seeds", help="seed range A:B (B exclusive), overrides -n")
+    ap.add_argument("--seeds", help="seed range A:B (B exclusive), or a comma-separated list of seeds and ranges; overrides -n")
     ap.add_argument("--quick", action="store_true", help=f"the 8-seed slice {QUICK_SEEDS}")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--bin", default="target/release/mrtwin")
