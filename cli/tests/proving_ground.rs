@@ -228,7 +228,10 @@ fn of_two_leak_basins_the_one_that_predicts_is_the_baseline() {
 /// residual structure only 14 %: the transient is sharp, counted as noise by the smoother,
 /// and the compliance failed the structure rule while a 3 kN seal friction, hidden nowhere,
 /// passed it. The held-out mean square above the force noise counts as structure too
-/// (diagnose::select::judge): exactly the hidden pair is found, with no seal.
+/// (diagnose::select::judge): exactly the hidden pair is found, with no seal. Since session
+/// 62 that mean square may be the typical held-out block's (here it falls further, 0.87,
+/// than the pooled one): either way it is the held-out excess, not the smoothed structure,
+/// that passes it.
 #[test]
 fn a_compliance_whose_gain_is_sharp_passes_the_structure_rule() {
     let (m, d) = generate_and_diagnose(159);
@@ -250,9 +253,14 @@ fn a_compliance_whose_gain_is_sharp_passes_the_structure_rule() {
         .find(|t| t["effect"] == "fluid_compressibility" && t["accepted"] == true)
         .expect("an accepted compliance trial");
     eprintln!("{}", compliance["evidence"]);
-    assert_eq!(
-        compliance["evidence"]["structure_region"],
-        "held-out mean square above the force noise"
+    let region = compliance["evidence"]["structure_region"].as_str().unwrap();
+    assert!(
+        [
+            "held-out mean square above the force noise",
+            "typical held-out block's mean square above the force noise"
+        ]
+        .contains(&region),
+        "{region}"
     );
 }
 
