@@ -2070,7 +2070,7 @@ mod tests {
         assert!((tb - geo(30.0, 100.0)).abs() < 1e-9 && (ta - geo(20.0, 130.0)).abs() < 1e-9);
         assert!((worst - 1.69).abs() < 1e-12);
         assert!(broad_gain(tb, ta, worst));
-        // The same typical gain with the eighth block 100 → 200 N is not broad: that block
+        // The same seven gains with the eighth block 100 → 200 N is not broad: that block
         // loses 4× in mean square, more than the typical block gains.
         let hurt: Vec<_> = [20.0; 7].into_iter().chain([200.0]).map(block).collect();
         let (tb, ta, worst) = typical_block_rmse(&before, &hurt);
