@@ -470,6 +470,14 @@ fn typical_block_rmse(before: &[HeldOutBlock], after: &[HeldOutBlock]) -> (f64, 
     (typical(|p| p.0), typical(|p| p.1), worst)
 }
 
+/// The fall of a held-out mean square above the force channel's own noise,
+/// (b² − a²)/(b² − σ_F²), read only where b² is clearly above it (b² > 1.2 σ_F²,
+/// [`EXCESS_OVER_NOISE`]); `None` where the RMS before is already at the noise.
+fn excess_over_noise(before: f64, after: f64, noise2: f64) -> Option<f64> {
+    let b2 = before * before;
+    (b2 > EXCESS_OVER_NOISE * noise2).then(|| (b2 - after * after) / (b2 - noise2))
+}
+
 /// Whether the typical held-out block gains ([`typical_block_rmse`]: `typical_after` below
 /// `typical_before`) and no block's mean square grows by more than the typical block's falls.
 fn broad_gain(typical_before: f64, typical_after: f64, worst_ms_ratio: f64) -> bool {
@@ -874,8 +882,7 @@ fn judge(
     // seed 159: held-out 213.8 → 108.8 N, smoothed structure down 14 %). So the held-out
     // mean square above the force channel's own noise counts as structure too.
     let noise2 = d.measurement.force_noise_hf_n.powi(2);
-    if before * before > EXCESS_OVER_NOISE * noise2 {
-        let excess = (before * before - after * after) / (before * before - noise2);
+    if let Some(excess) = excess_over_noise(before, after, noise2) {
         if excess > best.0 {
             best = (
                 excess,
@@ -888,11 +895,10 @@ fn judge(
     // block loses more than it ([`broad_gain`]), its mean square above the noise counts
     // too (proving-ground seed 107, a gas spring on a random current: typical block
     // 31.2 → 21.7 N, pooled 45.5 → 47.4 N through one block at 1.23 A).
-    if broad_gain(typical_before, typical_after, worst_ratio)
-        && typical_before * typical_before > EXCESS_OVER_NOISE * noise2
-    {
-        let excess = (typical_before * typical_before - typical_after * typical_after)
-            / (typical_before * typical_before - noise2);
+    let typical_excess = broad_gain(typical_before, typical_after, worst_ratio)
+        .then(|| excess_over_noise(typical_before, typical_after, noise2))
+        .flatten();
+    if let Some(excess) = typical_excess {
         if excess > best.0 {
             best = (
                 excess,
