@@ -211,7 +211,9 @@ impl AntiAlias {
         // The read falls on the same fine step of every interval: step se (1-based).
         let se = kd % m + 1;
         let lin = LinearInterval::new(b, a1, a2, m, se, frac);
-        let mut out = vec![0.0; n * cols];
+        // Rows are produced in order, each once (the reads of a run's intervals, then the
+        // run's unread tail), so they are appended, not zeroed first.
+        let mut out = Vec::with_capacity(n * cols);
         // Per column, one array each so that the columns of a step run side by side:
         // x[k-1], x[k-2], z[k-1], z[k-2] and the largest |x| so far; the read of the
         // current interval.
@@ -248,34 +250,22 @@ impl AntiAlias {
                     let dot = |w: &[f64; 5], u: &[f64; 5]| {
                         w[0] * u[0] + w[1] * u[1] + w[2] * u[2] + w[3] * u[3] + w[4] * u[4]
                     };
+                    // Without branches, so that the columns run side by side: a quiet
+                    // column (no input over the interval) at rest stays at exact zeros,
+                    // as every term is zero and `tiny` returns 0 (a Jacobian column of a
+                    // knot the current is away from, most of the record); `+ 0.0` turns
+                    // the −0 a zero input may give into 0.
                     for c in 0..cols {
-                        if ya[c] == 0.0
-                            && yb[c] == 0.0
-                            && x2[c] == 0.0
-                            && z1[c] == 0.0
-                            && z2[c] == 0.0
-                        {
-                            // A quiet column at rest stays at rest (every term below is
-                            // zero and `tiny` would return 0): a Jacobian column of a
-                            // knot the current is away from, most of the record.
-                            (got[c], z1[c], z2[c], x1[c], x2[c]) = (0.0, 0.0, 0.0, 0.0, 0.0);
-                            continue;
-                        }
                         let u = [x2[c], z1[c], z2[c], ya[c], yb[c]];
                         let pk = peak[c].max(ya[c].abs()).max(yb[c].abs());
                         let quiet = ya[c] == 0.0 && yb[c] == 0.0;
-                        let tiny = |v: f64| {
-                            if quiet && v.abs() <= 1e-12 * pk {
-                                0.0
-                            } else {
-                                v
-                            }
-                        };
+                        let floor = if quiet { 1e-12 * pk } else { -1.0 };
+                        let tiny = |v: f64| if v.abs() <= floor { 0.0 } else { v };
                         got[c] = tiny(dot(&lin.read, &u));
                         z1[c] = tiny(dot(&lin.z1, &u));
                         z2[c] = tiny(dot(&lin.z2, &u));
                         x1[c] = yb[c];
-                        x2[c] = lin.x2[0] * ya[c] + lin.x2[1] * yb[c];
+                        x2[c] = lin.x2[0] * ya[c] + lin.x2[1] * yb[c] + 0.0;
                         peak[c] = pk;
                     }
                 } else {
@@ -313,17 +303,24 @@ impl AntiAlias {
                     }
                 }
                 if let Some(r) = read {
-                    out[r * cols..(r + 1) * cols].copy_from_slice(&got);
+                    assert_eq!(out.len(), r * cols, "anti-alias reads out of order");
+                    out.extend_from_slice(&got);
                 }
             }
             // Samples whose read position lies past the run's last output take that output.
             let k = (end - 1 - start) * m;
             let first_unread = if k > kd { (k - 1 - kd) / m + 1 } else { 0 };
             for r in first_unread..end - start {
-                out[(start + r) * cols..(start + r + 1) * cols].copy_from_slice(&z1);
+                assert_eq!(
+                    out.len(),
+                    (start + r) * cols,
+                    "anti-alias reads out of order"
+                );
+                out.extend_from_slice(&z1);
             }
             start = end;
         }
+        debug_assert_eq!(out.len(), n * cols);
         out
     }
 }

@@ -394,7 +394,8 @@ fn evaluate_at(d: &Prepared, inp: &Channels, lay: &Layout, theta: &[f64], jac: b
     let p = lay.len();
     let nk = lay.nk;
     let mut force = vec![0.0; n];
-    let mut jm = if jac { vec![0.0; n * p] } else { Vec::new() };
+    // Each row is zeroed as its sample is reached (in cache, not the whole n × p up front).
+    let mut jm = Vec::with_capacity(if jac { n * p } else { 0 });
     let ifr = lay.index(Effect::SealFriction);
     let igas = lay.index(Effect::GasSpring);
     let iin = lay.index(Effect::FluidInertia);
@@ -494,6 +495,9 @@ fn evaluate_at(d: &Prepared, inp: &Channels, lay: &Layout, theta: &[f64], jac: b
         }
         let v = inp.v[j];
         let row = if jac { j * p } else { 0 };
+        if jac {
+            jm.resize(row + p, 0.0);
+        }
         // Fluid force.
         let fluid = if icp.is_some() && comp > 0.0 && h > 0.0 && j > 0 {
             let chamber = Chamber {

@@ -1,23 +1,27 @@
 //! Independent jobs on a few threads: the one parallel loop of mrtwin's fits.
 
 /// `f(0)`, …, `f(n − 1)` on up to `threads` scoped threads, returned in index order.
-/// Thread `t` takes the indices t, t + threads, … (round robin), so the jobs' results do
-/// not depend on the number of threads. With one thread (or one job) it runs inline.
+/// Each thread takes the next index not yet taken (jobs of unequal length keep every
+/// thread busy to the end); each job's result is its own, so the results do not depend on
+/// the number of threads or on which thread ran a job. With one thread (or one job) it
+/// runs inline.
 pub fn map_indexed<T: Send>(n: usize, threads: usize, f: impl Fn(usize) -> T + Sync) -> Vec<T> {
     let threads = threads.clamp(1, n.max(1));
     if threads == 1 {
         return (0..n).map(&f).collect();
     }
     let mut out: Vec<Option<T>> = (0..n).map(|_| None).collect();
+    let next = std::sync::atomic::AtomicUsize::new(0);
     std::thread::scope(|s| {
-        let f = &f;
+        let (f, next) = (&f, &next);
         let handles: Vec<_> = (0..threads)
-            .map(|t| {
+            .map(|_| {
                 s.spawn(move || {
-                    (t..n)
-                        .step_by(threads)
-                        .map(|i| (i, f(i)))
-                        .collect::<Vec<_>>()
+                    std::iter::from_fn(|| {
+                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        (i < n).then(|| (i, f(i)))
+                    })
+                    .collect::<Vec<_>>()
                 })
             })
             .collect();
