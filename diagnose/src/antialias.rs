@@ -436,6 +436,45 @@ mod tests {
     }
 
     #[test]
+    fn a_quiet_column_comes_back_to_exact_zeros() {
+        // A Jacobian column of a knot the current visits once: a pulse, then zeros. Its
+        // filtered tail ends in exact zeros (+0, not −0 or a denormal), and a column that
+        // never moves stays +0 throughout, in unrefined and refined intervals alike.
+        use crate::subsample::SubGrid;
+        let (n, m) = (400, 4);
+        let refined: Vec<bool> = (0..n).map(|j| j % 50 == 7).collect();
+        let mut pos = Vec::with_capacity(n);
+        let mut next = 0;
+        for &r in &refined {
+            if r {
+                next += m - 1;
+            }
+            pos.push(next);
+            next += 1;
+        }
+        let len = next;
+        let h = vec![1e-3 / m as f64; len];
+        let g = SubGrid {
+            m,
+            refined,
+            pos,
+            h,
+            ..SubGrid::default()
+        };
+        let y: Vec<f64> = (0..len)
+            .flat_map(|k| [if (40..60).contains(&k) { -3.0 } else { 0.0 }, 0.0])
+            .collect();
+        let out = AntiAlias::butterworth2(0.25, 1e-3).resample(&g, &y, 2);
+        assert_eq!(out.len(), 2 * n);
+        assert!(out[2 * 45] != 0.0, "the pulse passes");
+        assert!(out.iter().skip(1).step_by(2).all(|v| v.to_bits() == 0));
+        let first_zero = (0..n).rposition(|j| out[2 * j] != 0.0).unwrap() + 1;
+        // Before the next refined interval (sample 107), whose steps zero a tail on their own.
+        assert!(first_zero < 100, "the tail lasts to sample {first_zero}");
+        assert!(out[2 * first_zero..].iter().all(|v| v.to_bits() == 0));
+    }
+
+    #[test]
     fn resample_without_refinement_is_apply() {
         use crate::subsample::SubGrid;
         let n = 300;
