@@ -440,31 +440,29 @@ mod tests {
         // A Jacobian column of a knot the current visits once: a pulse, then zeros. Its
         // filtered tail ends in exact zeros (+0, not −0 or a denormal), and a column that
         // never moves stays +0 throughout, in unrefined and refined intervals alike.
-        use crate::subsample::SubGrid;
-        let (n, m) = (400, 4);
-        let refined: Vec<bool> = (0..n).map(|j| j % 50 == 7).collect();
-        let mut pos = Vec::with_capacity(n);
-        let mut next = 0;
-        for &r in &refined {
-            if r {
-                next += m - 1;
-            }
-            pos.push(next);
-            next += 1;
-        }
-        let len = next;
-        let h = vec![1e-3 / m as f64; len];
-        let g = SubGrid {
-            m,
-            refined,
-            pos,
-            h,
-            ..SubGrid::default()
+        use crate::subsample::{Channels, SubGrid};
+        let (n, m, dt) = (400, 4, 1e-3);
+        // Every 50th interval refined, through a current step in it (the velocity, held
+        // away from zero, has no reversal).
+        let h: Vec<f64> = (0..n).map(|j| if j == 0 { 0.0 } else { dt }).collect();
+        let (v, zeros) = (vec![0.1; n], vec![0.0; n]);
+        let step_at: Vec<Option<f64>> = (0..n).map(|j| (j % 50 == 7).then_some(0.5)).collect();
+        let c = Channels {
+            h: &h,
+            v: &v,
+            a: &zeros,
+            x: &zeros,
+            i: &zeros,
+            energy_kj: &zeros,
+            v_sigma: &zeros,
         };
+        let g = SubGrid::build(&c, m, &step_at);
+        assert_eq!(g.refined.iter().filter(|r| **r).count(), 8);
+        let len = g.len();
         let y: Vec<f64> = (0..len)
             .flat_map(|k| [if (40..60).contains(&k) { -3.0 } else { 0.0 }, 0.0])
             .collect();
-        let out = AntiAlias::butterworth2(0.25, 1e-3).resample(&g, &y, 2);
+        let out = AntiAlias::butterworth2(0.25, dt).resample(&g, &y, 2);
         assert_eq!(out.len(), 2 * n);
         assert!(out[2 * 45] != 0.0, "the pulse passes");
         assert!(out.iter().skip(1).step_by(2).all(|v| v.to_bits() == 0));
