@@ -1,11 +1,16 @@
 """rclpy AsyncParameterClient against an mrtwin twin (cli/tests/ros2_parameters.rs): list by
 section, get, describe, bad and good sets, and with `force` a load-cell offset that must
-show in /twin/predicted_force from the next sample. Prints one JSON line."""
+show in /twin/output (mrtwin_msgs, built natively) from the next sample. Prints one JSON line.
+
+"From the next sample" is read off the outputs' stamps (each its sample's): the stand makes a
+sample no earlier than its scheduled wall-clock stamp and the twin steps it after that, so an
+output stamped after this client had the answer (same machine, same clock) was stepped after
+the set was stored and must carry it. Outputs stepped before it may still arrive after the
+answer (a backlog in this process or in flight); they are counted, not bounded."""
 import json, sys, time
 import rclpy
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
-from std_msgs.msg import Float64
 
 target, check_force = sys.argv[1], sys.argv[2] == "force"
 rclpy.init()
@@ -37,8 +42,10 @@ out["stale_after_bad"] = get("stale_after_s")
 out["good"] = set_("health.residual.warn", 0.07)
 out["warn_after"] = get("health.residual.warn")
 if check_force:
-    forces = []
-    node.create_subscription(Float64, "/twin/predicted_force", lambda m: forces.append(m.data), 1000)
+    from mrtwin_msgs.msg import TwinOutput
+    forces = []  # [predicted force, stamp]
+    node.create_subscription(TwinOutput, "/twin/output", lambda m: forces.append(
+        [m.predicted_force, m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec]), 1000)
     end = time.time() + 3
     while time.time() < end:
         rclpy.spin_once(node, timeout_sec=0.05)
@@ -46,16 +53,19 @@ if check_force:
     # Counted after the get: the forces that arrive while it is answered are not after the set.
     before = len(forces)
     out["offset_set"] = set_("two_chamber.load_cell_offset_n", offset + 50000.0)
+    answered = time.time()
     end = time.time() + 2
     while time.time() < end:
         rclpy.spin_once(node, timeout_sec=0.05)
     old, after = forces[:before], forces[before:]
-    shifted = [f > 30000.0 for f in after]
+    shifted = [f > 30000.0 for f, _ in after]
     out["before"] = before
     out["after"] = len(after)
-    out["old_max"] = max(abs(f) for f in old) if old else None
-    # outputs stepped before the set was taken (in flight when it was answered)
+    out["old_max"] = max(abs(f) for f, _ in old) if old else None
+    # outputs stepped before the set was taken that arrived after the answer
     out["unshifted_after_set"] = shifted.index(True) if True in shifted else len(after)
+    out["stamped_after_answer"] = sum(1 for _, t in forces if t > answered)
+    out["unshifted_stamped_after_answer"] = sum(1 for f, t in forces if f <= 30000.0 and t > answered)
     out["shifted_then_all"] = all(shifted[shifted.index(True):]) if True in shifted else False
 print(json.dumps(out))
 node.destroy_node()

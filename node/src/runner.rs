@@ -283,9 +283,7 @@ impl TwinNode {
             if stop.reached(now) {
                 break;
             }
-            if let Some(params) = self.served.take_pending() {
-                self.take_params(&params, "ROS 2 parameter set");
-            }
+            self.take_parameter_set();
             let mut busy = self.take_samples(clock(now), &mut window, &mut outbox);
             busy |= self.serve_control(clock(now), &mut window, &mut outbox);
             if let Some(d) = self.core.on_idle(clock(now)) {
@@ -338,9 +336,12 @@ impl TwinNode {
             self.core.count_transport_error();
         }
         let mut busy = false;
-        for m in self.inbox.drain(..) {
+        let mut inbox = std::mem::take(&mut self.inbox);
+        for m in inbox.drain(..) {
             if let Message::Sample(s) = m {
                 busy = true;
+                // A set answered while this batch waited applies from this sample on.
+                self.take_parameter_set();
                 let out = self.core.on_sample(&SensorSample::from_msg(&s), now);
                 window.observe(&out.processed);
                 if !self.viewers.is_empty() {
@@ -349,7 +350,16 @@ impl TwinNode {
                 outbox.extend(out.into_messages());
             }
         }
+        self.inbox = inbox;
         busy
+    }
+
+    /// Take a ROS 2 parameter set if one was answered since the last look (an atomic
+    /// load when none was): every sample stepped after the answer sees it.
+    fn take_parameter_set(&mut self) {
+        if let Some(params) = self.served.take_pending() {
+            self.take_params(&params, "ROS 2 parameter set");
+        }
     }
 
     /// Answer pending iceoryx2 control requests; a stepped sample publishes like any other.
