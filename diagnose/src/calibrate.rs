@@ -180,29 +180,40 @@ pub fn null_statistics<C: Copy + Sync>(
     } else {
         cal.threads
     };
-    let done = std::sync::atomic::AtomicUsize::new(0);
-    let one = |k: usize| -> Vec<f64> {
-        let seed = cal
-            .seed
+    let seed = |k: usize| {
+        cal.seed
             .wrapping_add((round as u64) << 32)
-            .wrapping_add(k as u64);
-        let rd = replicate(d, current, r, block, seed);
-        // The current model refitted on the replicate, from its own values.
-        let m = fit_with(
+            .wrapping_add(k as u64)
+    };
+    // Two passes of independent jobs, so that the threads run out of work together: the
+    // current model refitted on each replicate (from its own values), then every
+    // (replicate, candidate) fit. A replicate record is made again where it is needed
+    // (a copy of the record with the force replaced), not kept.
+    let refits = numerics::parallel::map_indexed(cal.replicates, threads, |k| {
+        let rd = replicate(d, current, r, block, seed(k));
+        fit_with(
             &rd,
             &current.layout,
             &current.theta,
             10,
             FitDetail::CostOnly,
-        );
-        let row = cands
-            .iter()
-            .map(|&e| statistic(&m, &fit_candidate(&rd, &m, e)))
-            .collect();
-        progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1);
-        row
-    };
-    numerics::parallel::map_indexed(cal.replicates, threads, one)
+        )
+    });
+    // A replicate is done when its last candidate is.
+    let left: Vec<std::sync::atomic::AtomicUsize> = (0..cal.replicates)
+        .map(|_| std::sync::atomic::AtomicUsize::new(cands.len()))
+        .collect();
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let stats = numerics::parallel::map_indexed(cal.replicates * cands.len(), threads, |job| {
+        let (k, q) = (job / cands.len(), job % cands.len());
+        let rd = replicate(d, current, r, block, seed(k));
+        let t = statistic(&refits[k], &fit_candidate(&rd, &refits[k], cands[q]));
+        if left[k].fetch_sub(1, std::sync::atomic::Ordering::AcqRel) == 1 {
+            progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1);
+        }
+        t
+    });
+    stats.chunks(cands.len()).map(<[f64]>::to_vec).collect()
 }
 
 /// The calibrated evidence of a candidate from its record statistic and its null sample.

@@ -26,7 +26,7 @@
 //!   `C dF/dt = v − w(F)`, w the gap flow velocity that force F drives (inverse of the
 //!   baseline law), integrated implicitly (backward Euler)  \[C = 0\]
 
-use numerics::least_squares::{levenberg_marquardt, LmOptions};
+use numerics::least_squares::{levenberg_marquardt, levenberg_marquardt_two_trials, LmOptions};
 use twin::Effect;
 
 use crate::bingham;
@@ -1143,28 +1143,32 @@ pub fn fit_with(
     // is taken and linearised ([`evaluate_unfiltered`]): a rejected trial costs one model
     // run, an accepted one no second run.
     type State = (Vec<f64>, Evaluation, Vec<f64>);
-    let fit = levenberg_marquardt(
-        (theta, ev, Vec::new()),
-        sse,
-        &opts,
-        |(theta, ev, grid_jac): &State| {
-            let (mut jtj, mut jtr) = if ev.jac.is_empty() {
-                normal_equations(d, &ev.force, &filter_jacobian(d, lay, grid_jac), p)
-            } else {
-                normal_equations(d, &ev.force, &ev.jac, p)
-            };
-            add_knot_penalty(d, lay, theta, &mut jtj, &mut jtr);
-            hold_parameters(lay, &mut jtj, &mut jtr);
-            Some((jtj, jtr))
-        },
-        |(theta, _, _): &State, step: &nalgebra::DVector<f64>| {
-            let mut trial: Vec<f64> = theta.iter().zip(step.iter()).map(|(t, s)| t + s).collect();
-            clamp_bounds(d, lay, &mut trial);
-            let (ev, grid_jac) = evaluate_unfiltered(d, lay, &trial, true);
-            let sse = cost(&trial, &ev.force);
-            Some(((trial, ev, grid_jac), sse))
-        },
-    );
+    let linearize = |(theta, ev, grid_jac): &State| {
+        let (mut jtj, mut jtr) = if ev.jac.is_empty() {
+            normal_equations(d, &ev.force, &filter_jacobian(d, lay, grid_jac), p)
+        } else {
+            normal_equations(d, &ev.force, &ev.jac, p)
+        };
+        add_knot_penalty(d, lay, theta, &mut jtj, &mut jtr);
+        hold_parameters(lay, &mut jtj, &mut jtr);
+        Some((jtj, jtr))
+    };
+    let trial = |(theta, _, _): &State, step: &nalgebra::DVector<f64>| {
+        let mut trial: Vec<f64> = theta.iter().zip(step.iter()).map(|(t, s)| t + s).collect();
+        clamp_bounds(d, lay, &mut trial);
+        let (ev, grid_jac) = evaluate_unfiltered(d, lay, &trial, true);
+        let sse = cost(&trial, &ev.force);
+        Some(((trial, ev, grid_jac), sse))
+    };
+    // A fit that has the machine to itself (no sibling jobs: the baseline's refits, the
+    // joint fit before a bootstrap) tries the next damping beside each trial on the idle
+    // core: the same fit, sooner where trials are rejected.
+    let start = (theta, ev, Vec::new());
+    let fit = if numerics::parallel::spare_core() {
+        levenberg_marquardt_two_trials(start, sse, &opts, linearize, trial)
+    } else {
+        levenberg_marquardt(start, sse, &opts, linearize, trial)
+    };
     let (theta, ev, grid_jac) = fit.state;
     if detail == FitDetail::CostOnly {
         return Fit {

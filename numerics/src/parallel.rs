@@ -1,5 +1,24 @@
 //! Independent jobs on a few threads: the one parallel loop of mrtwin's fits.
 
+use std::cell::Cell;
+
+thread_local! {
+    /// Set on the threads [`map_indexed`] starts.
+    static WORKER: Cell<bool> = const { Cell::new(false) };
+}
+
+/// Whether this thread runs one of [`map_indexed`]'s jobs on a thread of its own: its
+/// siblings already share the cores, so it should not start more threads itself.
+pub fn in_worker() -> bool {
+    WORKER.with(Cell::get)
+}
+
+/// Whether a computation on this thread may take a second core: not inside a
+/// [`map_indexed`] worker, on a machine with more than one.
+pub fn spare_core() -> bool {
+    !in_worker() && std::thread::available_parallelism().is_ok_and(|n| n.get() > 1)
+}
+
 /// `f(0)`, …, `f(n − 1)` on up to `threads` scoped threads, returned in index order.
 /// Each thread takes the next index not yet taken (jobs of unequal length keep every
 /// thread busy to the end); each job's result is its own, so the results do not depend on
@@ -17,6 +36,7 @@ pub fn map_indexed<T: Send>(n: usize, threads: usize, f: impl Fn(usize) -> T + S
         let handles: Vec<_> = (0..threads)
             .map(|_| {
                 s.spawn(move || {
+                    WORKER.with(|w| w.set(true));
                     std::iter::from_fn(|| {
                         let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                         (i < n).then(|| (i, f(i)))
@@ -50,5 +70,14 @@ mod tests {
             );
         }
         assert!(map_indexed(0, 4, |i| i).is_empty());
+    }
+
+    #[test]
+    fn the_jobs_of_several_threads_know_they_are_workers() {
+        assert!(!in_worker());
+        assert_eq!(map_indexed(4, 2, |_| in_worker()), vec![true; 4]);
+        // One thread runs the jobs inline, on the caller's thread.
+        assert_eq!(map_indexed(4, 1, |_| in_worker()), vec![false; 4]);
+        assert!(!in_worker());
     }
 }
