@@ -1818,6 +1818,34 @@ mod tests {
     }
 
     #[test]
+    fn a_fit_alone_and_a_fit_among_parallel_jobs_end_bit_for_bit_alike() {
+        // Alone, `fit_with` tries two dampings at a time on two threads; as a parallel
+        // job, one. Both must take the same steps (its trials depend on their arguments
+        // only), with a compressible fluid and a lag whose trials are often rejected.
+        let d = record();
+        let (base, th, _) = bare_baseline(&d);
+        let lay = base
+            .with(Effect::FluidCompressibility)
+            .with(Effect::FieldLag);
+        let start = extend(&base, &th, &lay, &[]);
+        let alone = fit_with(&d, &lay, &start, 15, FitDetail::CostOnly);
+        let jobs = numerics::parallel::map_indexed(2, 2, |_| {
+            assert!(numerics::parallel::in_worker());
+            fit_with(&d, &lay, &start, 15, FitDetail::CostOnly)
+        });
+        let bits = |f: &Fit| {
+            let mut b: Vec<u64> = f.theta.iter().map(|x| x.to_bits()).collect();
+            b.extend(f.force.iter().map(|x| x.to_bits()));
+            b.push(f.train_sse.to_bits());
+            b
+        };
+        assert!(alone.train_sse.is_finite());
+        for f in &jobs {
+            assert_eq!(bits(f), bits(&alone));
+        }
+    }
+
+    #[test]
     fn the_velocity_error_scale_is_read_from_the_force_at_reversal() {
         // The velocity channels' error is all there is: κ stays 1.
         for seed in [1, 2, 3] {
