@@ -457,19 +457,23 @@ mod tests {
         assert!(coarse > 4.0 * fine, "samples only: {coarse} against {fine}");
     }
 
-    #[test]
-    fn a_quiet_column_comes_back_to_exact_zeros() {
-        // A Jacobian column of a knot the current visits once: a pulse, then zeros. Its
-        // filtered tail ends in exact zeros (+0, not −0 or a denormal), and a column that
-        // never moves stays +0 throughout, in unrefined and refined intervals alike.
-        use crate::subsample::{Channels, SubGrid};
-        let (n, m, dt) = (400, 4, 1e-3);
-        // Every 50th interval refined, through a current step in it (the velocity, held
-        // away from zero, has no reversal).
-        let h: Vec<f64> = (0..n).map(|j| if j == 0 { 0.0 } else { dt }).collect();
+    /// The sub-sample grid (`m` steps per refined interval) of `n` samples `dt` apart,
+    /// with a time gap before sample `gap` (none when `gap` ≥ n) and a current step at
+    /// fraction `step(j)` of interval j where it says so; the velocity, held away from zero,
+    /// refines no interval by itself.
+    fn stepped_grid(
+        n: usize,
+        m: usize,
+        dt: f64,
+        gap: usize,
+        step: impl Fn(usize) -> Option<f64>,
+    ) -> crate::subsample::SubGrid {
+        let h: Vec<f64> = (0..n)
+            .map(|j| if j == 0 || j == gap { 0.0 } else { dt })
+            .collect();
         let (v, zeros) = (vec![0.1; n], vec![0.0; n]);
-        let step_at: Vec<Option<f64>> = (0..n).map(|j| (j % 50 == 7).then_some(0.5)).collect();
-        let c = Channels {
+        let step_at: Vec<Option<f64>> = (0..n).map(step).collect();
+        let c = crate::subsample::Channels {
             h: &h,
             v: &v,
             a: &zeros,
@@ -478,7 +482,17 @@ mod tests {
             energy_kj: &zeros,
             v_sigma: &zeros,
         };
-        let g = SubGrid::build(&c, m, &step_at);
+        crate::subsample::SubGrid::build(&c, m, &step_at)
+    }
+
+    #[test]
+    fn a_quiet_column_comes_back_to_exact_zeros() {
+        // A Jacobian column of a knot the current visits once: a pulse, then zeros. Its
+        // filtered tail ends in exact zeros (+0, not −0 or a denormal), and a column that
+        // never moves stays +0 throughout, in unrefined and refined intervals alike.
+        let (n, m, dt) = (400, 4, 1e-3);
+        // Every 50th interval refined, through a current step in it.
+        let g = stepped_grid(n, m, dt, n, |j| (j % 50 == 7).then_some(0.5));
         assert_eq!(g.refined.iter().filter(|r| **r).count(), 8);
         let len = g.len();
         let y: Vec<f64> = (0..len)
@@ -498,23 +512,8 @@ mod tests {
     fn the_avx2_build_of_resample_gives_the_portable_results_bit_for_bit() {
         // Seven columns (an odd number: the vector loops' remainders too) of pulses,
         // sines and zeros, over unrefined and refined intervals and a time gap.
-        use crate::subsample::{Channels, SubGrid};
         let (n, m, dt) = (600, 4, 1e-3);
-        let h: Vec<f64> = (0..n)
-            .map(|j| if j == 0 || j == 301 { 0.0 } else { dt })
-            .collect();
-        let (v, zeros) = (vec![0.1; n], vec![0.0; n]);
-        let step_at: Vec<Option<f64>> = (0..n).map(|j| (j % 40 == 9).then_some(0.3)).collect();
-        let c = Channels {
-            h: &h,
-            v: &v,
-            a: &zeros,
-            x: &zeros,
-            i: &zeros,
-            energy_kj: &zeros,
-            v_sigma: &zeros,
-        };
-        let g = SubGrid::build(&c, m, &step_at);
+        let g = stepped_grid(n, m, dt, 301, |j| (j % 40 == 9).then_some(0.3));
         assert!(g.refined.iter().any(|r| *r) && g.refined.iter().any(|r| !*r));
         let cols = 7;
         let y: Vec<f64> = (0..g.len() * cols)
