@@ -176,7 +176,9 @@ where
     let mut lambda = opts.lambda_init;
     let mut iterations = 0;
     let mut stop = LmStop::MaxIterations;
-    let mut steps: Vec<(f64, DVector<f64>)> = Vec::with_capacity(batch);
+    // The steps of a batch, and the λ each was solved at.
+    let mut steps: Vec<DVector<f64>> = Vec::with_capacity(batch);
+    let mut lambdas: Vec<f64> = Vec::with_capacity(batch);
     let mut results = Vec::with_capacity(batch);
     for _ in 0..opts.max_iter {
         let Some((jtj, g)) = linearize(&state) else {
@@ -190,13 +192,15 @@ where
         while accepted.is_none() && tries < opts.max_tries {
             // The next `batch` solvable dampings, each with the λ it was solved at.
             steps.clear();
+            lambdas.clear();
             while steps.len() < batch && tries < opts.max_tries {
                 let mut a = jtj.clone();
                 for q in 0..p {
                     a[(q, q)] += lambda * jtj[(q, q)].max(opts.diag_floor);
                 }
                 if let Some(step) = linalg::solve_spd(a, &g) {
-                    steps.push((lambda, step));
+                    steps.push(step);
+                    lambdas.push(lambda);
                 }
                 lambda *= opts.lambda_up;
                 tries += 1;
@@ -204,10 +208,9 @@ where
             if steps.is_empty() {
                 break;
             }
-            let plain: Vec<DVector<f64>> = steps.iter().map(|(_, s)| s.clone()).collect();
             results.clear();
-            trials(&state, &plain, &mut results);
-            for ((at, step), result) in steps.iter().zip(results.drain(..)) {
+            trials(&state, &steps, &mut results);
+            for ((at, step), result) in lambdas.iter().zip(&steps).zip(results.drain(..)) {
                 let Some((next, c)) = result else { continue };
                 if c.is_finite() && c < cost {
                     let rel = (cost - c) / cost.max(1e-300);
