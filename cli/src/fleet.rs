@@ -19,9 +19,9 @@ use bridge::transport::{Message, Topic, Transport};
 use bridge::zenoh::{ZenohConfig, ZenohSession};
 use clap::Args;
 use node::config::TwinNodeParams;
-use node::fleet::{FleetStands, FleetTwins};
+use node::fleet::{FleetStands, FleetTwins, StandCounts, TwinCounts};
 use node::runner::StopWhen;
-use node::stand::StandParams;
+use node::stand::{StandParams, StandSummary};
 use numerics::stats::quantile;
 use serde_json::json;
 
@@ -142,8 +142,9 @@ fn spawn_monitor(
     }))
 }
 
-/// `mrtwin fleet`.
-pub fn run(args: &FleetArgs) -> Result<()> {
+/// Check the arguments of `mrtwin fleet`; returns the twins' namespace (`/fleet`, or the
+/// `__ns:=` of its ROS arguments, without a trailing `/`).
+fn checked_namespace(args: &FleetArgs) -> Result<String> {
     let n = args.dampers;
     if !(1..=1000).contains(&n) {
         bail!("--dampers must be in 1..=1000, got {n}");
@@ -162,11 +163,95 @@ pub fn run(args: &FleetArgs) -> Result<()> {
             args.ros_args
         );
     }
-    let namespace = ros
+    Ok(ros
         .namespace
         .as_deref()
         .unwrap_or("/fleet")
-        .trim_end_matches('/');
+        .trim_end_matches('/')
+        .to_string())
+}
+
+/// What a fleet run counted: per damper, the samples its stand sent and its twin stepped;
+/// the stands' lateness; the process's wall and CPU time \[s\].
+struct Outcome {
+    sent: Vec<StandCounts>,
+    counts: Vec<TwinCounts>,
+    stand_summary: StandSummary,
+    wall: f64,
+    cpu: f64,
+    cores: usize,
+}
+
+impl Outcome {
+    /// Print the one-line summary and return the JSON one (`--json`): per damper what was
+    /// sent, stepped and received centrally, the dampers without loss, the CPU use and the
+    /// sample-to-monitor latency.
+    fn report(&self, args: &FleetArgs, namespace: &str, seen: &[Seen]) -> serde_json::Value {
+        let Outcome {
+            sent,
+            counts,
+            stand_summary,
+            wall,
+            cpu,
+            cores,
+        } = self;
+        let (wall, cpu, cores) = (*wall, *cpu, *cores);
+        let n = sent.len();
+        let mut all_delays: Vec<f64> = seen.iter().flat_map(|s| s.delays.iter().copied()).collect();
+        all_delays.sort_by(f64::total_cmp);
+        let entries: Vec<_> = (0..n)
+            .map(|i| {
+                json!({
+                    "damper": damper_name(i),
+                    "node": format!("{namespace}/{}/mrtwin_twin", damper_name(i)),
+                    "sent": sent[i].sent,
+                    "stepped": counts[i].stepped,
+                    "received": seen[i].received,
+                    "twin_received": counts[i].received,
+                    "errors": sent[i].errors + counts[i].errors,
+                })
+            })
+            .collect();
+        let lossless = (0..n)
+            .filter(|&i| sent[i].sent == counts[i].stepped && counts[i].stepped == seen[i].received)
+            .count();
+        let total = |f: &dyn Fn(usize) -> u64| (0..n).map(f).sum::<u64>();
+        let summary = json!({
+            "dampers": entries,
+            "rate_hz": args.rate,
+            "duration_s": args.duration,
+            "wall_s": wall,
+            "cpu_s": cpu,
+            "cores": cores,
+            "cpu_percent": 100.0 * cpu / (wall * cores as f64),
+            "dampers_without_loss": lossless,
+            "stand_max_lateness_ms": stand_summary.max_lateness_s * 1e3,
+            "latency_ms": {
+                "p50": quantile(&all_delays, 0.5).map_or(f64::NAN, |d| d * 1e3),
+                "p99": quantile(&all_delays, 0.99).map_or(f64::NAN, |d| d * 1e3),
+                "max": all_delays.last().map_or(f64::NAN, |d| d * 1e3),
+            },
+        });
+        println!(
+            "sent {}, stepped {}, received centrally {}; {lossless} of {n} dampers without loss; \
+             CPU {:.0} % of {cores} cores; sample-to-monitor latency p50 {:.2} ms, p99 {:.2} ms; \
+             stand lateness max {:.2} ms",
+            total(&|i| sent[i].sent),
+            total(&|i| counts[i].stepped),
+            total(&|i| seen[i].received),
+            summary["cpu_percent"].as_f64().unwrap_or(f64::NAN),
+            summary["latency_ms"]["p50"].as_f64().unwrap_or(f64::NAN),
+            summary["latency_ms"]["p99"].as_f64().unwrap_or(f64::NAN),
+            stand_summary.max_lateness_s * 1e3,
+        );
+        summary
+    }
+}
+
+/// `mrtwin fleet`.
+pub fn run(args: &FleetArgs) -> Result<()> {
+    let n = args.dampers;
+    let namespace = checked_namespace(args)?;
     let stop = crate::stop::stop_flag()?;
     let port = crate::live::free_port()?;
     let endpoint = format!("tcp/127.0.0.1:{port}");
@@ -264,53 +349,15 @@ pub fn run(args: &FleetArgs) -> Result<()> {
     let cores = std::thread::available_parallelism().map_or(1, |c| c.get());
 
     let seen = seen.lock().unwrap_or_else(|p| p.into_inner());
-    let mut all_delays: Vec<f64> = seen.iter().flat_map(|s| s.delays.iter().copied()).collect();
-    all_delays.sort_by(f64::total_cmp);
-    let entries: Vec<_> = (0..n)
-        .map(|i| {
-            json!({
-                "damper": damper_name(i),
-                "node": format!("{namespace}/{}/mrtwin_twin", damper_name(i)),
-                "sent": sent[i].sent,
-                "stepped": counts[i].stepped,
-                "received": seen[i].received,
-                "twin_received": counts[i].received,
-                "errors": sent[i].errors + counts[i].errors,
-            })
-        })
-        .collect();
-    let lossless = (0..n)
-        .filter(|&i| sent[i].sent == counts[i].stepped && counts[i].stepped == seen[i].received)
-        .count();
-    let total = |f: &dyn Fn(usize) -> u64| (0..n).map(f).sum::<u64>();
-    let summary = json!({
-        "dampers": entries,
-        "rate_hz": args.rate,
-        "duration_s": args.duration,
-        "wall_s": wall,
-        "cpu_s": cpu,
-        "cores": cores,
-        "cpu_percent": 100.0 * cpu / (wall * cores as f64),
-        "dampers_without_loss": lossless,
-        "stand_max_lateness_ms": stand_summary.max_lateness_s * 1e3,
-        "latency_ms": {
-            "p50": quantile(&all_delays, 0.5).map_or(f64::NAN, |d| d * 1e3),
-            "p99": quantile(&all_delays, 0.99).map_or(f64::NAN, |d| d * 1e3),
-            "max": all_delays.last().map_or(f64::NAN, |d| d * 1e3),
-        },
-    });
-    println!(
-        "sent {}, stepped {}, received centrally {}; {lossless} of {n} dampers without loss; \
-         CPU {:.0} % of {cores} cores; sample-to-monitor latency p50 {:.2} ms, p99 {:.2} ms; \
-         stand lateness max {:.2} ms",
-        total(&|i| sent[i].sent),
-        total(&|i| counts[i].stepped),
-        total(&|i| seen[i].received),
-        summary["cpu_percent"].as_f64().unwrap_or(f64::NAN),
-        summary["latency_ms"]["p50"].as_f64().unwrap_or(f64::NAN),
-        summary["latency_ms"]["p99"].as_f64().unwrap_or(f64::NAN),
-        stand_summary.max_lateness_s * 1e3,
-    );
+    let outcome = Outcome {
+        sent,
+        counts,
+        stand_summary,
+        wall,
+        cpu,
+        cores,
+    };
+    let summary = outcome.report(args, &namespace, &seen);
     if let Some(path) = &args.json {
         std::fs::write(path, serde_json::to_string_pretty(&summary)? + "\n")
             .with_context(|| format!("write {}", path.display()))?;

@@ -213,69 +213,7 @@ pub fn write_upgraded(
     let effects = found
         .iter()
         .fold(config.effects, |set: EffectSet, (e, _)| set.with(*e));
-    let peak_speed = records
-        .iter()
-        .flatten()
-        .map(|s| s.velocity_m_s.abs())
-        .filter(|v| v.is_finite())
-        .fold(0.0, f64::max);
-    // The twin's seal friction is a tanh step whose width the fit does not move (freed,
-    // it runs off against the leak and τ_y(0)): with a friction added, the upgrade is
-    // calibrated at each width of FRICTION_WIDTHS and the lowest held-out RMS is kept.
-    let adds_friction = found.iter().any(|(e, _)| *e == Effect::SealFriction);
-    let widths: &[f64] = if adds_friction {
-        &FRICTION_WIDTHS
-    } else {
-        &FRICTION_WIDTHS[..1]
-    };
-    let mut best: Option<(crate::fit::Calibrated, Vec<String>)> = None;
-    let mut first_error = None;
-    let mut profile = Vec::new();
-    for share in widths {
-        let mut upgraded = config.params.clone();
-        for (e, si) in &found {
-            seed_effect(
-                &mut upgraded.two_chamber,
-                *e,
-                *si,
-                share * peak_speed,
-                effects.has(Effect::GasSpring),
-            );
-        }
-        if let Some(st) = step {
-            // diagnose's F_c F_y(I)/F̄_y tanh(v/v_s) is β F_y(I) tanh(v/v_s): β = F_c/F̄_y.
-            upgraded.two_chamber.fluid.yield_step_share = st.share;
-            upgraded.two_chamber.fluid.yield_step_velocity_m_s =
-                (YIELD_STEP_WIDTH_START * peak_speed).max(1e-6);
-        }
-        let up_config = PipelineConfig {
-            params: upgraded,
-            effects,
-            ..config.clone()
-        };
-        match calibrate_upgrade(&config, &up_config, records) {
-            Ok((c, held)) => {
-                if adds_friction {
-                    profile.push(json!({
-                        "seal_friction_velocity_m_s": share * peak_speed,
-                        "holdout_rmse_n": c.holdout_rmse_n,
-                    }));
-                }
-                if best
-                    .as_ref()
-                    .is_none_or(|(b, _)| c.holdout_rmse_n < b.holdout_rmse_n)
-                {
-                    best = Some((c, held));
-                }
-            }
-            Err(e) => {
-                first_error.get_or_insert(e);
-            }
-        }
-    }
-    let Some((c, held)) = best else {
-        return Err(first_error.expect("at least one width tried, and every one failed"));
-    };
+    let (c, held, profile) = calibrated_at_best_width(&config, &found, step, effects, records)?;
     // The full fit ran through the same pipeline on every sample: its RMS is the replay's.
     let up_rmse = c.full.rmse_n;
     let fitted = c.full.applied_to(&config);
@@ -318,6 +256,83 @@ pub fn write_upgraded(
         json,
         summary: summary(up_rmse),
     })
+}
+
+/// The upgraded twin calibrated on `records`: `config` with the `found` effects seeded from
+/// diagnose's values (and the fluid's yield `step`, when carried) and switched on
+/// (`effects`). The twin's seal friction is a tanh step whose width the fit does not move
+/// (freed, it runs off against the leak and τ_y(0)): with a friction added, the upgrade is
+/// calibrated at each width of FRICTION_WIDTHS (a share of the record's peak speed) and the
+/// lowest held-out RMS is kept. Returns that calibration, the keys held at diagnose's
+/// value, and the held-out RMS at each width tried (empty without a friction).
+fn calibrated_at_best_width(
+    config: &PipelineConfig,
+    found: &[(Effect, f64)],
+    step: Option<&FluidShape>,
+    effects: EffectSet,
+    records: &[Vec<SensorSample>],
+) -> Result<(crate::fit::Calibrated, Vec<String>, Vec<Value>)> {
+    let peak_speed = records
+        .iter()
+        .flatten()
+        .map(|s| s.velocity_m_s.abs())
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::max);
+    let adds_friction = found.iter().any(|(e, _)| *e == Effect::SealFriction);
+    let widths: &[f64] = if adds_friction {
+        &FRICTION_WIDTHS
+    } else {
+        &FRICTION_WIDTHS[..1]
+    };
+    let mut best: Option<(crate::fit::Calibrated, Vec<String>)> = None;
+    let mut first_error = None;
+    let mut profile = Vec::new();
+    for share in widths {
+        let mut upgraded = config.params.clone();
+        for (e, si) in found {
+            seed_effect(
+                &mut upgraded.two_chamber,
+                *e,
+                *si,
+                share * peak_speed,
+                effects.has(Effect::GasSpring),
+            );
+        }
+        if let Some(st) = step {
+            // diagnose's F_c F_y(I)/F̄_y tanh(v/v_s) is β F_y(I) tanh(v/v_s): β = F_c/F̄_y.
+            upgraded.two_chamber.fluid.yield_step_share = st.share;
+            upgraded.two_chamber.fluid.yield_step_velocity_m_s =
+                (YIELD_STEP_WIDTH_START * peak_speed).max(1e-6);
+        }
+        let up_config = PipelineConfig {
+            params: upgraded,
+            effects,
+            ..config.clone()
+        };
+        match calibrate_upgrade(config, &up_config, records) {
+            Ok((c, held)) => {
+                if adds_friction {
+                    profile.push(json!({
+                        "seal_friction_velocity_m_s": share * peak_speed,
+                        "holdout_rmse_n": c.holdout_rmse_n,
+                    }));
+                }
+                if best
+                    .as_ref()
+                    .is_none_or(|(b, _)| c.holdout_rmse_n < b.holdout_rmse_n)
+                {
+                    best = Some((c, held));
+                }
+            }
+            Err(e) => {
+                first_error.get_or_insert(e);
+            }
+        }
+    }
+    let Some((c, held)) = best else {
+        return Err(first_error.expect("at least one width tried, and every one failed"));
+    };
+    Ok((c, held, profile))
 }
 
 /// Calibrate the upgraded twin on `records`. When the records cannot identify a parameter

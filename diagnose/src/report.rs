@@ -418,6 +418,19 @@ pub fn render_markdown(r: &Report) -> String {
         "**Split.** {} ({} fitting, {} held-out samples).\n",
         r.split.method, r.split.train_samples, r.split.holdout_samples
     );
+    write_verdict(&mut s, r);
+    write_unexplained(&mut s, r);
+    write_measurement(&mut s, r);
+    write_fit(&mut s, r);
+    write_residual_statistics(&mut s, r);
+    write_trials(&mut s, r);
+    s
+}
+
+/// The verdict: each finding with its evidence, the undecided groups, what was withdrawn, the
+/// fluid's shape and the current knots the record does not identify or fits on slow strokes.
+fn write_verdict(s: &mut String, r: &Report) {
+    use std::fmt::Write;
     let _ = writeln!(s, "## Verdict\n");
     if r.findings.is_empty() && r.undecided.is_empty() {
         if r.unexplained.is_empty() {
@@ -522,6 +535,12 @@ pub fn render_markdown(r: &Report) -> String {
             );
         }
     }
+}
+
+/// The structure still left in the final residual, where it concentrates and what it
+/// correlates with (nothing when there is none).
+fn write_unexplained(s: &mut String, r: &Report) {
+    use std::fmt::Write;
     if !r.unexplained.is_empty() {
         let _ = writeln!(s, "\n## Unexplained\n");
         let _ = writeln!(
@@ -543,6 +562,11 @@ pub fn render_markdown(r: &Report) -> String {
             );
         }
     }
+}
+
+/// The measurement model: the channels' noise, the rebuilt velocity and what was left out.
+fn write_measurement(s: &mut String, r: &Report) {
+    use std::fmt::Write;
     let m = &r.measurement;
     let _ = writeln!(
         s,
@@ -585,6 +609,12 @@ pub fn render_markdown(r: &Report) -> String {
             )
         }
     );
+}
+
+/// The baseline's and the final model's fit, where the baseline misses and the residual
+/// by stroke phase.
+fn write_fit(s: &mut String, r: &Report) {
+    use std::fmt::Write;
     let _ = writeln!(s, "\n## Fit\n");
     let _ = writeln!(
         s,
@@ -628,6 +658,11 @@ pub fn render_markdown(r: &Report) -> String {
             p.phase, p.baseline_rms_n, p.final_rms_n
         );
     }
+}
+
+/// The residuals' whiteness and cross-correlations, baseline and final.
+fn write_residual_statistics(s: &mut String, r: &Report) {
+    use std::fmt::Write;
     let _ = writeln!(s, "\n## Residual statistics\n");
     let _ = writeln!(
         s,
@@ -658,6 +693,11 @@ pub fn render_markdown(r: &Report) -> String {
             cc.join(" | ")
         );
     }
+}
+
+/// Every candidate tried: the rules, the calibrated threshold and the verdict of each.
+fn write_trials(s: &mut String, r: &Report) {
+    use std::fmt::Write;
     let _ = writeln!(s, "\n## Every candidate tried\n");
     if r.selector == "calibrated" {
         let _ = writeln!(
@@ -731,5 +771,4 @@ pub fn render_markdown(r: &Report) -> String {
             yn(t.accepted)
         );
     }
-    s
 }
