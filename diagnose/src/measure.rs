@@ -362,20 +362,9 @@ fn stroke_period(t: &[f64], marks: &[usize]) -> f64 {
     }
 }
 
-/// Apply the measurement model. `h[j]` is the step to the previous sample (0 at a gap).
-// Several per-sample arrays are read with one index: a range loop is clearer.
-#[allow(clippy::needless_range_loop)]
-pub fn measure(
-    t: &[f64],
-    x: &[f64],
-    v: &[f64],
-    f: &[f64],
-    h: &[f64],
-    velocity_derived: bool,
-) -> Measured {
-    let n = t.len();
-    let dts: Vec<f64> = h.iter().copied().filter(|d| *d > 0.0).collect();
-    let dt = if dts.is_empty() { 1e-3 } else { median(dts) };
+/// The runs of contiguous samples `(start, end)`: a new run begins at every gap (`h[j] = 0`).
+fn contiguous_runs(h: &[f64]) -> Vec<(usize, usize)> {
+    let n = h.len();
     let mut runs = Vec::new();
     let mut a = 0;
     for j in 1..=n {
@@ -384,75 +373,81 @@ pub fn measure(
             a = j;
         }
     }
-    let marks = reversals(x);
-    let period = stroke_period(t, &marks);
-    let half: Vec<usize> = local_periods(t, &marks, period)
-        .iter()
-        .map(|p| ((0.05 * p / dt).round() as usize).clamp(3, 400))
+    runs
+}
+
+/// The velocity used, and its standard error per sample: the displacement's local-cubic
+/// slope (`fx`, error variance `var_vx`), fused with the measured velocity channel when
+/// there is one (its local cubic over the same `chosen` windows, inverse-variance
+/// weighted). Returns (v̂, σ_v̂, and the velocity channel's own noise σ when measured).
+fn rebuilt_velocity(
+    t: &[f64],
+    v: &[f64],
+    fx: &LocalFit,
+    var_vx: &[f64],
+    chosen: &[usize],
+    runs: &[(usize, usize)],
+    velocity_derived: bool,
+) -> (Vec<f64>, Vec<f64>, Option<f64>) {
+    if velocity_derived {
+        let v_sigma = var_vx.iter().map(|&vx| standard_error(vx)).collect();
+        return (fx.slope.clone(), v_sigma, None);
+    }
+    let fv = local_cubic(t, v, chosen, runs);
+    let sv = noise_sigma(v, &fv);
+    let fused = (0..t.len())
+        .map(|j| {
+            let vx = var_vx[j];
+            let vv = sv * sv * fv.leverage[j];
+            if vv <= 0.0 || !vx.is_finite() {
+                return fv.value[j];
+            }
+            if vx <= 0.0 {
+                return fx.slope[j];
+            }
+            (fx.slope[j] / vx + fv.value[j] / vv) / (1.0 / vx + 1.0 / vv)
+        })
         .collect();
-    // Noise levels from short windows (a cubic follows any well-sampled motion over ±6
-    // samples); the smoothing windows are then chosen per sample against them.
-    let short_noise: Vec<usize> = half.iter().map(|h| (*h).min(6)).collect();
-    let sx = noise_sigma(x, &local_cubic(t, x, &short_noise, &runs));
-    let (fx, chosen) = local_cubic_adaptive_slope(t, x, &half, &runs, sx);
-    let var_vx: Vec<f64> = fx.slope_gain.iter().map(|g| sx * sx * g).collect();
-    let (v_hat, sigma_v_raw) = if velocity_derived {
-        (fx.slope.clone(), None)
+    let v_sigma = (0..t.len())
+        .map(|j| {
+            let vx = var_vx[j];
+            let vv = sv * sv * fv.leverage[j];
+            let v_var = if vx.is_finite() && vx > 0.0 && vv > 0.0 {
+                1.0 / (1.0 / vx + 1.0 / vv)
+            } else if vv > 0.0 {
+                vv
+            } else {
+                vx
+            };
+            standard_error(v_var)
+        })
+        .collect();
+    (fused, v_sigma, Some(sv))
+}
+
+/// √variance, 0 where the variance is not finite (no estimate).
+fn standard_error(var: f64) -> f64 {
+    if var.is_finite() {
+        var.max(0.0).sqrt()
     } else {
-        let fv = local_cubic(t, v, &chosen, &runs);
-        let sv = noise_sigma(v, &fv);
-        let fused = (0..n)
-            .map(|j| {
-                let vx = var_vx[j];
-                let vv = sv * sv * fv.leverage[j];
-                if vv <= 0.0 || !vx.is_finite() {
-                    return fv.value[j];
-                }
-                if vx <= 0.0 {
-                    return fx.slope[j];
-                }
-                (fx.slope[j] / vx + fv.value[j] / vv) / (1.0 / vx + 1.0 / vv)
-            })
-            .collect();
-        (fused, Some((sv, fv.leverage.clone())))
-    };
-    let v_sigma: Vec<f64> = {
-        (0..n)
-            .map(|j| {
-                let vx = var_vx[j];
-                let v_var = match &sigma_v_raw {
-                    Some((sv, lev)) => {
-                        let vv = sv * sv * lev[j];
-                        if vx.is_finite() && vx > 0.0 && vv > 0.0 {
-                            1.0 / (1.0 / vx + 1.0 / vv)
-                        } else if vv > 0.0 {
-                            vv
-                        } else {
-                            vx
-                        }
-                    }
-                    None => vx,
-                };
-                if v_var.is_finite() {
-                    v_var.max(0.0).sqrt()
-                } else {
-                    0.0
-                }
-            })
-            .collect()
-    };
-    let sigma_v_hat = median(v_sigma.clone());
-    let fa = local_cubic(t, &v_hat, &chosen, &runs);
-    let short = vec![3usize; n];
-    let ff = local_cubic(t, f, &short, &runs);
-    let force_noise = noise_sigma(f, &ff);
-    // Flat stretches of displacement, force and (when measured) velocity.
+        0.0
+    }
+}
+
+/// Flat (stuck) stretches of displacement, force and, when measured, velocity: each as
+/// `(start, end, stretch)`.
+fn flat_stretches(
+    t: &[f64],
+    dt: f64,
+    (x, f, v): (&[f64], &[f64], &[f64]),
+    velocity_derived: bool,
+) -> Vec<(usize, usize, FlatStretch)> {
     let mut channels = vec![("displacement_m", x), ("force_N", f)];
     if !velocity_derived {
         channels.push(("velocity_m_s", v));
     }
     let values: Vec<&[f64]> = channels.iter().map(|c| c.1).collect();
-    let flats: Vec<(usize, usize, FlatStretch)> = numerics::signal::stuck_runs(dt, &values)
+    numerics::signal::stuck_runs(dt, &values)
         .into_iter()
         .map(|(k, r)| {
             let (channel, y) = channels[k];
@@ -465,9 +460,20 @@ pub fn measure(
             };
             (r.start, r.end, stretch)
         })
-        .collect();
+        .collect()
+}
+
+/// The samples left out: each flat stretch with 2 samples either side, then the ends of
+/// every run (`half` samples each, one local window, where the velocity is one-sided).
+/// Returns the mask, the samples left out for flat stretches and those for the ends.
+fn excluded_samples(
+    n: usize,
+    flats: &[(usize, usize, FlatStretch)],
+    runs: &[(usize, usize)],
+    half: &[usize],
+) -> (Vec<bool>, usize, usize) {
     let mut excluded = vec![false; n];
-    for (a, b, _) in &flats {
+    for (a, b, _) in flats {
         for e in excluded
             .iter_mut()
             .take((*b + 2).min(n))
@@ -476,9 +482,9 @@ pub fn measure(
             *e = true;
         }
     }
-    let excluded_samples = excluded.iter().filter(|e| **e).count();
+    let flat_samples = excluded.iter().filter(|e| **e).count();
     let mut edge_samples = 0;
-    for &(a, b) in &runs {
+    for &(a, b) in runs {
         if b <= a {
             continue;
         }
@@ -490,12 +496,49 @@ pub fn measure(
             }
         }
     }
+    (excluded, flat_samples, edge_samples)
+}
+
+/// Apply the measurement model. `h[j]` is the step to the previous sample (0 at a gap).
+pub fn measure(
+    t: &[f64],
+    x: &[f64],
+    v: &[f64],
+    f: &[f64],
+    h: &[f64],
+    velocity_derived: bool,
+) -> Measured {
+    let n = t.len();
+    let dts: Vec<f64> = h.iter().copied().filter(|d| *d > 0.0).collect();
+    let dt = if dts.is_empty() { 1e-3 } else { median(dts) };
+    let runs = contiguous_runs(h);
+    let marks = reversals(x);
+    let period = stroke_period(t, &marks);
+    let half: Vec<usize> = local_periods(t, &marks, period)
+        .iter()
+        .map(|p| ((0.05 * p / dt).round() as usize).clamp(3, 400))
+        .collect();
+    // Noise levels from short windows (a cubic follows any well-sampled motion over ±6
+    // samples); the smoothing windows are then chosen per sample against them.
+    let short_noise: Vec<usize> = half.iter().map(|h| (*h).min(6)).collect();
+    let sx = noise_sigma(x, &local_cubic(t, x, &short_noise, &runs));
+    let (fx, chosen) = local_cubic_adaptive_slope(t, x, &half, &runs, sx);
+    let var_vx: Vec<f64> = fx.slope_gain.iter().map(|g| sx * sx * g).collect();
+    let (v_hat, v_sigma, velocity_noise) =
+        rebuilt_velocity(t, v, &fx, &var_vx, &chosen, &runs, velocity_derived);
+    let sigma_v_hat = median(v_sigma.clone());
+    let fa = local_cubic(t, &v_hat, &chosen, &runs);
+    let short = vec![3usize; n];
+    let ff = local_cubic(t, f, &short, &runs);
+    let force_noise = noise_sigma(f, &ff);
+    let flats = flat_stretches(t, dt, (x, f, v), velocity_derived);
+    let (excluded, excluded_samples, edge_samples) = excluded_samples(n, &flats, &runs, &half);
     let summary = MeasurementSummary {
         sample_interval_s: dt,
         stroke_period_s: period,
         window_half_samples: median(chosen.iter().map(|h| *h as f64).collect()) as usize,
         displacement_noise_m: sx,
-        velocity_noise_m_s: sigma_v_raw.as_ref().map(|s| s.0),
+        velocity_noise_m_s: velocity_noise,
         rebuilt_velocity_sigma_m_s: sigma_v_hat,
         velocity_error_scale: 1.0,
         force_noise_hf_n: force_noise,

@@ -287,8 +287,6 @@ pub fn free_parameters(
 ) -> Result<(Vec<ParamKey>, Vec<String>), FitError> {
     let (model, params, effects) = (cfg.model, &cfg.params, cfg.effects);
     let k = current_levels.clamp(1, 3);
-    // The two-chamber fluid's laws take up to a quartic: one coefficient per level.
-    let k_fluid = current_levels.clamp(1, MAX_CURRENT_COEFFS);
     let mut notes = Vec::new();
     if k < 3 && model != ModelKind::Spencer {
         notes.push(format!(
@@ -304,96 +302,10 @@ pub fn free_parameters(
             keys.push(ParamKey::BinghamOffset);
         }
         ModelKind::TwoChamber => {
-            notes.push(
-                "the geometry (bore, rod, gap, chamber volumes) is not fitted: the records \
-                 identify the yield force and the viscous coefficient as laws in current, \
-                 fitted here as τ_y(I) and μ(I) at the base geometry"
-                    .into(),
-            );
-            if k_fluid > 3 {
-                notes.push(format!(
-                    "the records hold {current_levels} current levels: τ_y(I) and μ(I) are \
-                     fitted with {k_fluid} coefficients each (c0 + c1 |I| + … + c{} |I|^{})",
-                    k_fluid - 1,
-                    k_fluid - 1
-                ));
-            }
-            keys.extend((0..k_fluid).map(ParamKey::YieldStress));
-            keys.extend((0..k_fluid).map(ParamKey::Viscosity));
-            if params.two_chamber.fluid.law == FluidLaw::HerschelBulkley {
-                keys.push(ParamKey::FlowIndex);
-            }
-            if params.two_chamber.fluid.pre_yield_leak > 0.0 {
-                keys.push(ParamKey::PreYieldLeak);
-            }
-            if params.two_chamber.fluid.yield_step_share > 0.0 {
-                keys.push(ParamKey::YieldStepShare);
-                keys.push(ParamKey::YieldStepVelocity);
-            }
-            keys.push(ParamKey::LoadCellOffset);
-            for e in effects.iter() {
-                keys.push(match e {
-                    Effect::FluidCompressibility => {
-                        notes.push(
-                            "fluid_compressibility: the records identify a chamber compliance \
-                             V/(K A²), fitted through K at the base chamber volumes"
-                                .into(),
-                        );
-                        ParamKey::BulkModulus
-                    }
-                    Effect::GasSpring => {
-                        notes.push(
-                            "gas_spring: the preload force −p0·Ar and the load cell's zero are \
-                             one offset; p0 keeps its base value and the stiffness κ p0 Ar²/Vg0 \
-                             is fitted through the gas volume"
-                                .into(),
-                        );
-                        ParamKey::GasVolume
-                    }
-                    Effect::SealFriction => ParamKey::SealFriction,
-                    Effect::FluidInertia => ParamKey::FluidDensity,
-                    Effect::FieldLag => ParamKey::FieldTimeConstant,
-                    Effect::ThermalSoftening => {
-                        notes.push(
-                            "thermal_softening: fitted through the heat capacity, with the \
-                             fluid's temperature coefficients and the heat loss at their base values"
-                                .into(),
-                        );
-                        ParamKey::HeatCapacity
-                    }
-                });
-            }
+            keys = two_chamber_keys(params, effects, current_levels, &mut notes);
         }
         ModelKind::Spencer => {
-            if effects != EffectSet::NONE {
-                return Err(FitError::Effects(format!(
-                    "model 'spencer' takes no effects (asked for: {effects})"
-                )));
-            }
-            notes.push(
-                "spencer: A, n, x0 and volts_per_amp are held (z rescales with A, γ, β and α \
-                 together; −k1·x0 is one offset with the load cell's zero, fitted as \
-                 load_cell_offset_n; the gain only rescales the laws in u)"
-                    .into(),
-            );
-            use SpencerKey::*;
-            keys.extend(
-                [C0a, K0, C1a, K1, LoadCellOffset, AlphaA, Gamma, Beta]
-                    .into_iter()
-                    .map(ParamKey::Spencer),
-            );
-            if current_levels >= 2 {
-                notes.push(
-                    "spencer: the laws in u are linear (αb, c0b, c1b fitted) and the command \
-                     filter η is fitted from the changes of current"
-                        .into(),
-                );
-                keys.extend([C0b, C1b, AlphaB, Eta].into_iter().map(ParamKey::Spencer));
-            } else {
-                notes.push(
-                    "spencer: one current level: αb, c0b, c1b and η keep their base values".into(),
-                );
-            }
+            keys = spencer_keys(effects, current_levels, &mut notes)?;
         }
         other => return Err(FitError::UnsupportedModel(other)),
     }
@@ -420,6 +332,119 @@ pub fn free_parameters(
         }
     }
     Ok((keys, notes))
+}
+
+/// The two-chamber model's free parameters: the laws in current τ_y(I) and μ(I) with one
+/// coefficient per current level (up to a quartic), the fluid law's own shape parameters
+/// where the base file uses them, the load cell's zero, and one parameter per effect
+/// (each with what it means in `notes`).
+fn two_chamber_keys(
+    params: &ModelParams,
+    effects: EffectSet,
+    current_levels: usize,
+    notes: &mut Vec<String>,
+) -> Vec<ParamKey> {
+    let k_fluid = current_levels.clamp(1, MAX_CURRENT_COEFFS);
+    let mut keys = Vec::new();
+    notes.push(
+        "the geometry (bore, rod, gap, chamber volumes) is not fitted: the records \
+         identify the yield force and the viscous coefficient as laws in current, \
+         fitted here as τ_y(I) and μ(I) at the base geometry"
+            .into(),
+    );
+    if k_fluid > 3 {
+        notes.push(format!(
+            "the records hold {current_levels} current levels: τ_y(I) and μ(I) are \
+             fitted with {k_fluid} coefficients each (c0 + c1 |I| + … + c{} |I|^{})",
+            k_fluid - 1,
+            k_fluid - 1
+        ));
+    }
+    keys.extend((0..k_fluid).map(ParamKey::YieldStress));
+    keys.extend((0..k_fluid).map(ParamKey::Viscosity));
+    if params.two_chamber.fluid.law == FluidLaw::HerschelBulkley {
+        keys.push(ParamKey::FlowIndex);
+    }
+    if params.two_chamber.fluid.pre_yield_leak > 0.0 {
+        keys.push(ParamKey::PreYieldLeak);
+    }
+    if params.two_chamber.fluid.yield_step_share > 0.0 {
+        keys.push(ParamKey::YieldStepShare);
+        keys.push(ParamKey::YieldStepVelocity);
+    }
+    keys.push(ParamKey::LoadCellOffset);
+    for e in effects.iter() {
+        keys.push(match e {
+            Effect::FluidCompressibility => {
+                notes.push(
+                    "fluid_compressibility: the records identify a chamber compliance \
+                     V/(K A²), fitted through K at the base chamber volumes"
+                        .into(),
+                );
+                ParamKey::BulkModulus
+            }
+            Effect::GasSpring => {
+                notes.push(
+                    "gas_spring: the preload force −p0·Ar and the load cell's zero are \
+                     one offset; p0 keeps its base value and the stiffness κ p0 Ar²/Vg0 \
+                     is fitted through the gas volume"
+                        .into(),
+                );
+                ParamKey::GasVolume
+            }
+            Effect::SealFriction => ParamKey::SealFriction,
+            Effect::FluidInertia => ParamKey::FluidDensity,
+            Effect::FieldLag => ParamKey::FieldTimeConstant,
+            Effect::ThermalSoftening => {
+                notes.push(
+                    "thermal_softening: fitted through the heat capacity, with the \
+                     fluid's temperature coefficients and the heat loss at their base values"
+                        .into(),
+                );
+                ParamKey::HeatCapacity
+            }
+        });
+    }
+    keys
+}
+
+/// Spencer's Bouc–Wen model's free parameters (no effects): the laws in u fitted linear
+/// and the command filter η only with two current levels or more; A, n, x0 and the gain
+/// held (`notes` say why).
+fn spencer_keys(
+    effects: EffectSet,
+    current_levels: usize,
+    notes: &mut Vec<String>,
+) -> Result<Vec<ParamKey>, FitError> {
+    let mut keys = Vec::new();
+    if effects != EffectSet::NONE {
+        return Err(FitError::Effects(format!(
+            "model 'spencer' takes no effects (asked for: {effects})"
+        )));
+    }
+    notes.push(
+        "spencer: A, n, x0 and volts_per_amp are held (z rescales with A, γ, β and α \
+         together; −k1·x0 is one offset with the load cell's zero, fitted as \
+         load_cell_offset_n; the gain only rescales the laws in u)"
+            .into(),
+    );
+    use SpencerKey::*;
+    keys.extend(
+        [C0a, K0, C1a, K1, LoadCellOffset, AlphaA, Gamma, Beta]
+            .into_iter()
+            .map(ParamKey::Spencer),
+    );
+    if current_levels >= 2 {
+        notes.push(
+            "spencer: the laws in u are linear (αb, c0b, c1b fitted) and the command \
+             filter η is fitted from the changes of current"
+                .into(),
+        );
+        keys.extend([C0b, C1b, AlphaB, Eta].into_iter().map(ParamKey::Spencer));
+    } else {
+        notes.push("spencer: one current level: αb, c0b, c1b and η keep their base values".into());
+    }
+    Ok(keys)
 }
 
 /// Where the fit starts the driver's lag when the base file gives none (0) \[s\]: a
@@ -705,84 +730,11 @@ pub struct Unidentified {
 pub fn fit_or_unidentified(
     problem: &FitProblem<'_>,
 ) -> Result<Result<FitOutcome, Unidentified>, FitError> {
-    let base = PipelineConfig {
-        estimator: None,
-        ..problem.config.clone()
-    };
-    TwinPipeline::new(base.clone()).map_err(|e| FitError::Effects(e.to_string()))?;
-    let transforms = problem
-        .keys
-        .iter()
-        .map(|&k| Transform::new(k, start_value(k, &base), scale_floor(k, problem)))
-        .collect::<Result<Vec<_>, _>>()?;
-    let np = problem.keys.len();
-    let at = |z: &[f64]| {
-        let mut cfg = base.clone();
-        for ((k, t), zi) in problem.keys.iter().zip(&transforms).zip(z) {
-            k.set(&mut cfg, t.value(*zi));
-        }
-        cfg
-    };
-    let residual = |z: &[f64]| -> Vec<f64> {
-        let pred = predict(&at(z), problem.records);
-        let mut r = Vec::new();
-        for ((rec, pr), m) in problem.records.iter().zip(&pred).zip(&problem.mask) {
-            for ((s, f), use_it) in rec.iter().zip(pr).zip(m) {
-                if *use_it && s.force_n.is_finite() {
-                    // NaN where the sample was dropped (the same samples at every
-                    // parameter value: they are left out below) or the model failed.
-                    r.push(s.force_n - f);
-                }
-            }
-        }
-        r
-    };
-    let z0 = vec![0.0; np];
-    let r0 = residual(&z0);
-    let usable = r0.iter().filter(|e| e.is_finite()).count();
-    if usable <= 2 * np {
-        return Err(FitError::TooFewSamples {
-            samples: usable,
-            parameters: np,
-        });
-    }
-    let valid: Vec<bool> = r0.iter().map(|e| e.is_finite()).collect();
-    let clean = |r: Vec<f64>| -> Option<Vec<f64>> {
-        let mut out = Vec::with_capacity(usable);
-        for (e, ok) in r.into_iter().zip(&valid) {
-            if *ok {
-                if !e.is_finite() {
-                    return None;
-                }
-                out.push(e);
-            }
-        }
-        Some(out)
-    };
-    let r0 = clean(r0).expect("finite at the start by construction");
+    let (objective, r0) = Objective::new(problem)?;
+    let usable = objective.usable;
     let start_cost = sum_of_squares(&r0);
-    let jacobian = |st: &State| -> Result<DMatrix<f64>, FitError> {
-        let threads = std::thread::available_parallelism().map_or(1, |c| c.get());
-        let cols: Vec<Result<Vec<f64>, FitError>> = map_indexed(np, threads, |q| {
-            let mut z = st.z.clone();
-            z[q] += FD_STEP;
-            let r = clean(residual(&z)).ok_or(FitError::NonFinite(problem.keys[q]))?;
-            Ok(r.iter()
-                .zip(&st.residual)
-                .map(|(a, b)| (a - b) / FD_STEP)
-                .collect())
-        });
-        let mut j = DMatrix::zeros(usable, np);
-        for (q, c) in cols.into_iter().enumerate() {
-            let c = c?;
-            for (i, v) in c.into_iter().enumerate() {
-                j[(i, q)] = v;
-            }
-        }
-        Ok(j)
-    };
     let start = State {
-        z: z0,
+        z: vec![0.0; problem.keys.len()],
         residual: r0,
     };
     let mut last_error = None;
@@ -796,7 +748,7 @@ pub fn fit_or_unidentified(
         start,
         start_cost,
         &opts,
-        |st: &State| match jacobian(st) {
+        |st: &State| match objective.jacobian(st) {
             Ok(j) => Some(normal_equations(&j, &st.residual)),
             Err(e) => {
                 last_error = Some(e);
@@ -805,7 +757,7 @@ pub fn fit_or_unidentified(
         },
         |st: &State, step: &DVector<f64>| {
             let z: Vec<f64> = st.z.iter().zip(step.iter()).map(|(a, b)| a + b).collect();
-            let r = clean(residual(&z))?;
+            let r = objective.residual(&z)?;
             let cost = sum_of_squares(&r);
             Some((State { z, residual: r }, cost))
         },
@@ -814,9 +766,9 @@ pub fn fit_or_unidentified(
         return Err(e);
     }
     let st = &outcome.state;
-    let j = jacobian(st)?;
+    let j = objective.jacobian(st)?;
     let jtj = j.transpose() * &j;
-    let optimum = at(&st.z);
+    let optimum = objective.config_at(&st.z);
     let std_z = match standard_errors(&jtj, &st.residual, &problem.keys) {
         Ok(s) => s,
         Err(keys) => return Ok(Err(Unidentified { keys, optimum })),
@@ -829,7 +781,7 @@ pub fn fit_or_unidentified(
     let fitted = problem
         .keys
         .iter()
-        .zip(&transforms)
+        .zip(&objective.transforms)
         .zip(st.z.iter().zip(&std_z))
         .map(|((&key, t), (&z, &se))| FittedParam {
             key,
@@ -848,6 +800,132 @@ pub fn fit_or_unidentified(
         iterations: outcome.iterations,
         stop: outcome.stop,
     }))
+}
+
+/// The fit's objective in the transformed coordinates z (each key's [`Transform`], z = 0
+/// at the start): the records run through the pipeline at [`Objective::config_at`], one
+/// residual per fitting sample that was usable at the start.
+struct Objective<'a, 'r> {
+    problem: &'a FitProblem<'r>,
+    /// The pipeline at the start values, its estimator off.
+    base: PipelineConfig,
+    transforms: Vec<Transform>,
+    /// Which of all the fitting samples' residuals were finite at the start (the others,
+    /// dropped by conditioning, are left out at every parameter value).
+    valid: Vec<bool>,
+    /// How many were.
+    usable: usize,
+}
+
+impl<'a, 'r> Objective<'a, 'r> {
+    /// The objective of `problem`, and its residuals at the start. An error when the
+    /// base configuration does not build or too few samples (≤ 2 per parameter) are usable.
+    fn new(problem: &'a FitProblem<'r>) -> Result<(Self, Vec<f64>), FitError> {
+        let base = PipelineConfig {
+            estimator: None,
+            ..problem.config.clone()
+        };
+        TwinPipeline::new(base.clone()).map_err(|e| FitError::Effects(e.to_string()))?;
+        let transforms = problem
+            .keys
+            .iter()
+            .map(|&k| Transform::new(k, start_value(k, &base), scale_floor(k, problem)))
+            .collect::<Result<Vec<_>, _>>()?;
+        let np = problem.keys.len();
+        let mut objective = Objective {
+            problem,
+            base,
+            transforms,
+            valid: Vec::new(),
+            usable: 0,
+        };
+        let r0 = objective.all_residuals(&vec![0.0; np]);
+        let usable = r0.iter().filter(|e| e.is_finite()).count();
+        if usable <= 2 * np {
+            return Err(FitError::TooFewSamples {
+                samples: usable,
+                parameters: np,
+            });
+        }
+        objective.valid = r0.iter().map(|e| e.is_finite()).collect();
+        objective.usable = usable;
+        let r0 = objective
+            .usable_only(r0)
+            .expect("finite at the start by construction");
+        Ok((objective, r0))
+    }
+
+    /// The configuration at `z`.
+    fn config_at(&self, z: &[f64]) -> PipelineConfig {
+        let mut cfg = self.base.clone();
+        for ((k, t), zi) in self.problem.keys.iter().zip(&self.transforms).zip(z) {
+            k.set(&mut cfg, t.value(*zi));
+        }
+        cfg
+    }
+
+    /// Measured minus predicted force on every fitting sample with a finite measurement:
+    /// NaN where the sample was dropped (the same samples at every parameter value: they
+    /// are left out) or the model failed.
+    fn all_residuals(&self, z: &[f64]) -> Vec<f64> {
+        let problem = self.problem;
+        let pred = predict(&self.config_at(z), problem.records);
+        let mut r = Vec::new();
+        for ((rec, pr), m) in problem.records.iter().zip(&pred).zip(&problem.mask) {
+            for ((s, f), use_it) in rec.iter().zip(pr).zip(m) {
+                if *use_it && s.force_n.is_finite() {
+                    r.push(s.force_n - f);
+                }
+            }
+        }
+        r
+    }
+
+    /// The residuals of the usable samples; `None` when one of them is not finite (the
+    /// model failed there).
+    fn usable_only(&self, r: Vec<f64>) -> Option<Vec<f64>> {
+        let mut out = Vec::with_capacity(self.usable);
+        for (e, ok) in r.into_iter().zip(&self.valid) {
+            if *ok {
+                if !e.is_finite() {
+                    return None;
+                }
+                out.push(e);
+            }
+        }
+        Some(out)
+    }
+
+    /// The residuals at `z` (`None` where the model fails).
+    fn residual(&self, z: &[f64]) -> Option<Vec<f64>> {
+        self.usable_only(self.all_residuals(z))
+    }
+
+    /// Forward-difference Jacobian of the residuals in z at `st`, one column per
+    /// parameter, the columns in parallel.
+    fn jacobian(&self, st: &State) -> Result<DMatrix<f64>, FitError> {
+        let np = self.problem.keys.len();
+        let threads = std::thread::available_parallelism().map_or(1, |c| c.get());
+        let cols: Vec<Result<Vec<f64>, FitError>> = map_indexed(np, threads, |q| {
+            let mut z = st.z.clone();
+            z[q] += FD_STEP;
+            let r = self
+                .residual(&z)
+                .ok_or(FitError::NonFinite(self.problem.keys[q]))?;
+            Ok(r.iter()
+                .zip(&st.residual)
+                .map(|(a, b)| (a - b) / FD_STEP)
+                .collect())
+        });
+        let mut j = DMatrix::zeros(self.usable, np);
+        for (q, c) in cols.into_iter().enumerate() {
+            let c = c?;
+            for (i, v) in c.into_iter().enumerate() {
+                j[(i, q)] = v;
+            }
+        }
+        Ok(j)
+    }
 }
 
 /// Largest condition number of the correlation form of JᵀJ the fit accepts.
