@@ -364,15 +364,18 @@ fn stroke_period(t: &[f64], marks: &[usize]) -> f64 {
 
 /// The runs of contiguous samples `(start, end)`: a new run begins at every gap (`h[j] = 0`).
 fn contiguous_runs(h: &[f64]) -> Vec<(usize, usize)> {
-    let n = h.len();
     let mut runs = Vec::new();
+    if h.is_empty() {
+        return runs;
+    }
     let mut a = 0;
-    for j in 1..=n {
-        if j == n || h[j] == 0.0 {
+    for (j, &step) in h.iter().enumerate().skip(1) {
+        if step == 0.0 {
             runs.push((a, j));
             a = j;
         }
     }
+    runs.push((a, h.len()));
     runs
 }
 
