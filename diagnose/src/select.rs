@@ -841,6 +841,57 @@ fn judge(
     // that misfit, which would otherwise widen every candidate's null) but is not accepted.
     let unresolved_seal =
         e == Effect::SealFriction && fluid_shape.is_none() && !seal_is_resolved(&cand);
+    let best = structure_removed(
+        d,
+        reg,
+        (current, &cand),
+        flags,
+        (before, after),
+        (typical_before, typical_after, worst_ratio),
+    );
+    let passed = [
+        after < before * (1.0 - th.min_holdout_drop) && z >= th.min_holdout_z,
+        dbic <= th.max_delta_bic,
+        ci_ok,
+        best.0 >= th.min_structure_drop,
+    ];
+    Judged {
+        effect: e,
+        partner,
+        fluid_shape,
+        unresolved_seal,
+        fit: cand,
+        evidence: Evidence {
+            holdout_rmse_before_n: before,
+            holdout_rmse_after_n: after,
+            holdout_typical_block_rmse_before_n: typical_before,
+            holdout_typical_block_rmse_after_n: typical_after,
+            holdout_worst_block_ms_ratio: worst_ratio,
+            delta_bic: dbic,
+            effective_samples: n_eff,
+            holdout_z: z,
+            structure_drop: best.0,
+            structure_region: best.1,
+            calibration: None,
+        },
+        passed,
+    }
+}
+
+/// The largest share of residual structure the candidate `cand` removes from `current`'s
+/// residual (and where): in each flagged region and the region where its prediction
+/// changes most (the smoothed structure of [`region_stats`]), and as the held-out mean
+/// square above the force noise, pooled (`holdout`: RMS before, after) or in the typical
+/// held-out block under the broad-gain proviso (`typical`: before, after, worst block's
+/// ratio).
+fn structure_removed(
+    d: &Prepared,
+    reg: &Regions,
+    (current, cand): (&Fit, &Fit),
+    flags: &[usize],
+    (before, after): (f64, f64),
+    (typical_before, typical_after, worst_ratio): (f64, f64, f64),
+) -> (f64, String) {
     let r0 = residual(d, &current.force);
     let r1 = residual(d, &cand.force);
     let s0 = region_stats(d, reg, &r0, true);
@@ -906,33 +957,7 @@ fn judge(
             );
         }
     }
-    let passed = [
-        after < before * (1.0 - th.min_holdout_drop) && z >= th.min_holdout_z,
-        dbic <= th.max_delta_bic,
-        ci_ok,
-        best.0 >= th.min_structure_drop,
-    ];
-    Judged {
-        effect: e,
-        partner,
-        fluid_shape,
-        unresolved_seal,
-        fit: cand,
-        evidence: Evidence {
-            holdout_rmse_before_n: before,
-            holdout_rmse_after_n: after,
-            holdout_typical_block_rmse_before_n: typical_before,
-            holdout_typical_block_rmse_after_n: typical_after,
-            holdout_worst_block_ms_ratio: worst_ratio,
-            delta_bic: dbic,
-            effective_samples: n_eff,
-            holdout_z: z,
-            structure_drop: best.0,
-            structure_region: best.1,
-            calibration: None,
-        },
-        passed,
-    }
+    best
 }
 
 fn explanation(e: Effect, p: &BTreeMap<String, Parameter>) -> String {

@@ -37,6 +37,86 @@ struct Tally {
     false_alarm: usize,
 }
 
+impl Tally {
+    /// Count one record: the effects `found` against the `hidden` ones.
+    fn count(&mut self, found: &[Effect], hidden: &[Effect]) {
+        let mut hidden = hidden.to_vec();
+        hidden.sort();
+        self.runs += 1;
+        self.exact += usize::from(found == hidden.as_slice());
+        self.detected += usize::from(hidden.iter().all(|h| found.contains(h)));
+        self.false_alarm += usize::from(found.iter().any(|e| !hidden.contains(e)));
+    }
+
+    fn add(&mut self, x: Tally) {
+        self.runs += x.runs;
+        self.exact += x.exact;
+        self.detected += x.detected;
+        self.false_alarm += x.false_alarm;
+    }
+}
+
+/// `--verbose`: one record's verdicts and every trial, on stderr.
+fn print_trials(
+    scn: &Scenario,
+    seed: u64,
+    rise: f64,
+    dg: &diagnose::Diagnosis,
+    found: &[Effect],
+    sf: &[Effect],
+) {
+    eprintln!(
+        "{} seed {seed}: ΔT {rise:.1} K; diagnose [{}] undecided {:?}; sindy [{}]; holdout {:.2} → {:.2} N",
+        scn.name,
+        ids(found),
+        dg.report.undecided.iter().map(|u| u.effects.join("/")).collect::<Vec<_>>(),
+        ids(sf),
+        dg.report.baseline.holdout_rmse_n,
+        dg.report.final_model.holdout_rmse_n
+    );
+    for t in &dg.report.trials {
+        eprintln!(
+            "    r{} {:<22} pass {:?} dBIC {:>10.1} hold {:.3}→{:.3} z {:>6.1} struct {:.2} ({}) {:?}",
+            t.round,
+            t.effect,
+            t.passed,
+            t.evidence.delta_bic,
+            t.evidence.holdout_rmse_before_n,
+            t.evidence.holdout_rmse_after_n,
+            t.evidence.holdout_z,
+            t.evidence.structure_drop,
+            t.evidence.structure_region,
+            t.parameters.values().map(|p| (p.value, p.ci95)).collect::<Vec<_>>()
+        );
+    }
+}
+
+/// The totals table: diagnose and the SINDy-style reference, records with hidden effects
+/// and nulls.
+fn print_totals(td: Tally, null_d: Tally, ts: Tally, null_s: Tally) {
+    let pct = |a: usize, b: usize| 100.0 * a as f64 / b.max(1) as f64;
+    println!();
+    println!("| method | detection rate (all hidden found) | exactly right | false-alarm rate with hidden effects | false-alarm rate on nulls |");
+    println!("| --- | --- | --- | --- | --- |");
+    for (name, t, nl) in [("diagnose", td, null_d), ("SINDy-style STLSQ", ts, null_s)] {
+        println!(
+            "| {name} | {:.0} % ({}/{}) | {:.0} % ({}/{}) | {:.0} % ({}/{}) | {:.0} % ({}/{}) |",
+            pct(t.detected, t.runs),
+            t.detected,
+            t.runs,
+            pct(t.exact + nl.exact, t.runs + nl.runs),
+            t.exact + nl.exact,
+            t.runs + nl.runs,
+            pct(t.false_alarm, t.runs),
+            t.false_alarm,
+            t.runs,
+            pct(nl.false_alarm, nl.runs),
+            nl.false_alarm,
+            nl.runs
+        );
+    }
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let seeds: u64 = args.iter().find_map(|a| a.parse().ok()).unwrap_or(5);
@@ -88,39 +168,10 @@ fn main() {
             }
             hb += dg.report.baseline.holdout_rmse_n;
             hf += dg.report.final_model.holdout_rmse_n;
-            for (t, f) in [(&mut d, &found), (&mut s, &sf)] {
-                t.runs += 1;
-                let mut hidden = scn.hidden.clone();
-                hidden.sort();
-                t.exact += usize::from(*f == hidden);
-                t.detected += usize::from(hidden.iter().all(|h| f.contains(h)));
-                t.false_alarm += usize::from(f.iter().any(|e| !hidden.contains(e)));
-            }
+            d.count(&found, &scn.hidden);
+            s.count(&sf, &scn.hidden);
             if verbose {
-                eprintln!(
-                    "{} seed {seed}: ΔT {rise:.1} K; diagnose [{}] undecided {:?}; sindy [{}]; holdout {:.2} → {:.2} N",
-                    scn.name,
-                    ids(&found),
-                    dg.report.undecided.iter().map(|u| u.effects.join("/")).collect::<Vec<_>>(),
-                    ids(&sf),
-                    dg.report.baseline.holdout_rmse_n,
-                    dg.report.final_model.holdout_rmse_n
-                );
-                for t in &dg.report.trials {
-                    eprintln!(
-                        "    r{} {:<22} pass {:?} dBIC {:>10.1} hold {:.3}→{:.3} z {:>6.1} struct {:.2} ({}) {:?}",
-                        t.round,
-                        t.effect,
-                        t.passed,
-                        t.evidence.delta_bic,
-                        t.evidence.holdout_rmse_before_n,
-                        t.evidence.holdout_rmse_after_n,
-                        t.evidence.holdout_z,
-                        t.evidence.structure_drop,
-                        t.evidence.structure_region,
-                        t.parameters.values().map(|p| (p.value, p.ci95)).collect::<Vec<_>>()
-                    );
-                }
+                print_trials(scn, seed, rise, &dg, &found, &sf);
             }
         }
         println!(
@@ -147,34 +198,10 @@ fn main() {
         } else {
             (&mut td, &mut ts)
         };
-        for (acc, x) in [(a, d), (b, s)] {
-            acc.runs += x.runs;
-            acc.exact += x.exact;
-            acc.detected += x.detected;
-            acc.false_alarm += x.false_alarm;
-        }
+        a.add(d);
+        b.add(s);
     }
-    let pct = |a: usize, b: usize| 100.0 * a as f64 / b.max(1) as f64;
-    println!();
-    println!("| method | detection rate (all hidden found) | exactly right | false-alarm rate with hidden effects | false-alarm rate on nulls |");
-    println!("| --- | --- | --- | --- | --- |");
-    for (name, t, nl) in [("diagnose", td, null_d), ("SINDy-style STLSQ", ts, null_s)] {
-        println!(
-            "| {name} | {:.0} % ({}/{}) | {:.0} % ({}/{}) | {:.0} % ({}/{}) | {:.0} % ({}/{}) |",
-            pct(t.detected, t.runs),
-            t.detected,
-            t.runs,
-            pct(t.exact + nl.exact, t.runs + nl.runs),
-            t.exact + nl.exact,
-            t.runs + nl.runs,
-            pct(t.false_alarm, t.runs),
-            t.false_alarm,
-            t.runs,
-            pct(nl.false_alarm, nl.runs),
-            nl.false_alarm,
-            nl.runs
-        );
-    }
+    print_totals(td, null_d, ts, null_s);
     println!();
     println!(
         "diagnose: {nrun} recordings of 30 000 samples (60 s at 500 Hz): mean wall time {:.2} s, \
