@@ -112,6 +112,31 @@ pub struct TwinCheck {
     pub summary: Option<String>,
 }
 
+/// What the upgrade carries over from a diagnosis: each finding as the twin effect and its
+/// value in SI units, and the fluid's yield step when its shape follows the yield force.
+fn carried_over(dg: &Diagnosis) -> (Vec<(Effect, f64)>, Option<&FluidShape>) {
+    let found = dg
+        .report
+        .findings
+        .iter()
+        .filter_map(|f| {
+            let e: Effect = f.effect.parse().ok()?;
+            Some((e, si_value(e, &f.parameters)?))
+        })
+        .collect();
+    (found, dg.report.fluid_shape.iter().find(|s| carried(s)))
+}
+
+/// The fluid shapes diagnose found that the twin does not take (their explanations).
+fn not_carried(dg: &Diagnosis) -> Vec<&str> {
+    dg.report
+        .fluid_shape
+        .iter()
+        .filter(|s| !carried(s))
+        .map(|s| s.explanation.as_str())
+        .collect()
+}
+
 /// Write the upgraded twin: the twin of `params` with the effects diagnose found switched
 /// on and calibrated on `records` (the recording `input`, as the node sees it).
 pub fn write_upgraded(
@@ -124,29 +149,13 @@ pub fn write_upgraded(
 ) -> Result<TwinCheck> {
     let config = params.pipeline_config()?;
     let (twin_rmse, _) = rms_residual(records, &predict(&config, records), |_, _| true);
-    let found: Vec<(Effect, f64)> = dg
-        .report
-        .findings
-        .iter()
-        .filter_map(|f| {
-            let e: Effect = f.effect.parse().ok()?;
-            Some((e, si_value(e, &f.parameters)?))
-        })
-        .collect();
-    let step = dg.report.fluid_shape.iter().find(|s| carried(s));
+    let (found, step) = carried_over(dg);
     // The effect ids added (JSON `added`), and what the upgrade adds in words.
     let added: Vec<&str> = found.iter().map(|(e, _)| e.id()).collect();
     let mut adds = added.clone();
     if step.is_some() {
         adds.push("the fluid's yield step");
     }
-    let not_carried: Vec<&str> = dg
-        .report
-        .fluid_shape
-        .iter()
-        .filter(|s| !carried(s))
-        .map(|s| s.explanation.as_str())
-        .collect();
     let (b, f) = (
         dg.report.baseline.holdout_rmse_unweighted_n,
         dg.report.final_model.holdout_rmse_unweighted_n,
@@ -164,7 +173,7 @@ pub fn write_upgraded(
         "diagnose_holdout_ratio": f / b,
         "diagnose_explained_variance_N2": explained,
         "predicted_replay_ratio": claim,
-        "fluid_shape_not_carried": not_carried,
+        "fluid_shape_not_carried": not_carried(dg),
     });
     let Some(out) = out else {
         return Ok(TwinCheck {

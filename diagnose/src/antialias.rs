@@ -14,7 +14,7 @@
 //! low-pass (the usual analog front end), discretised by the bilinear transform with
 //! pre-warping. Its cut-off is read from the current channel's steps, the filter's own
 //! step response seen through the same front end
-//! ([`crate::current::CurrentChannel::front_end_cutoff_hz`]), where they show it;
+//! ([`crate::current::ConditionedCurrent::front_end_cutoff_hz`]), where they show it;
 //! otherwise it is fitted with the baseline from a grid of fractions of the sample rate,
 //! "no filter" included ([`crate::select`]).
 
@@ -94,7 +94,7 @@ pub struct AntiAlias {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum CutoffSource {
-    /// Read from the current channel's steps ([`crate::current::CurrentChannel::front_end_cutoff_hz`]).
+    /// Read from the current channel's steps ([`crate::current::ConditionedCurrent::front_end_cutoff_hz`]).
     CurrentSteps,
     /// Fitted with the baseline to the force, from [`CUTOFF_GRID`].
     ForceFit,

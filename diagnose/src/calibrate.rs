@@ -82,7 +82,7 @@ impl Calibration {
 
 /// The calibrated evidence of one candidate.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Calibrated {
+pub struct CalibratedEvidence {
     /// T_e on the record.
     pub statistic: f64,
     /// The (1 − α) quantile of its null.
@@ -99,7 +99,7 @@ pub struct Calibrated {
     pub replicates: usize,
 }
 
-impl Calibrated {
+impl CalibratedEvidence {
     /// Beats its null.
     pub fn passes(&self) -> bool {
         self.statistic > self.threshold
@@ -224,7 +224,7 @@ pub fn null_statistics<C: Copy + Sync>(
 /// replicates (Satterthwaite, ν held ≥ 1, which only thickens the tail) and the threshold
 /// is its quantile at 1 − α/(1 − π0). With fewer than three nonzero replicates the tail is
 /// taken as white noise, χ²(Δp).
-pub fn judge_null(t: f64, null: &[f64], dp: usize, alpha: f64) -> Calibrated {
+pub fn judge_null(t: f64, null: &[f64], dp: usize, alpha: f64) -> CalibratedEvidence {
     let b = null.len();
     let scale = null.iter().fold(1.0f64, |m, x| m.max(x.abs()));
     let tail: Vec<f64> = null.iter().copied().filter(|x| *x > 1e-9 * scale).collect();
@@ -248,7 +248,7 @@ pub fn judge_null(t: f64, null: &[f64], dp: usize, alpha: f64) -> Calibrated {
     let threshold =
         (kappa * stats::chi2_quantile(p, nu)).max(stats::chi2_quantile(1.0 - alpha, dp as f64));
     let exceed = null.iter().filter(|x| **x >= t).count() as f64 / b.max(1) as f64;
-    Calibrated {
+    CalibratedEvidence {
         statistic: t,
         threshold,
         null_scale: Some(kappa),
@@ -262,8 +262,8 @@ pub fn judge_null(t: f64, null: &[f64], dp: usize, alpha: f64) -> Calibrated {
 /// The evidence of a candidate that was not bootstrapped: its statistic is below the
 /// screening floor (`screen_fraction` × the white-noise threshold), at the per-test level
 /// `alpha` ([`Calibration::alpha_per_test`]).
-pub fn screened(t: f64, dp: usize, cal: &Calibration, alpha: f64) -> Calibrated {
-    Calibrated {
+pub fn screened(t: f64, dp: usize, cal: &Calibration, alpha: f64) -> CalibratedEvidence {
+    CalibratedEvidence {
         statistic: t,
         threshold: stats::chi2_quantile(1.0 - alpha, dp as f64) * cal.screen_fraction,
         null_scale: None,

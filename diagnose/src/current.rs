@@ -24,9 +24,9 @@
 //!   channels are in). The sub-sample grid carries the step inside its interval
 //!   ([`crate::subsample`]), so the model's force steps there and is filtered once.
 //! * **The front end's cut-off.** The steps are the anti-alias filter's step response,
-//!   sampled: their shape gives its cut-off ([`CurrentChannel::cutoff_from_steps`]),
+//!   sampled: their shape gives its cut-off ([`ConditionedCurrent::cutoff_from_steps`]),
 //!   independently of any force model, and the force is filtered under it
-//!   ([`CurrentChannel::front_end_cutoff_hz`] says when it is clear enough).
+//!   ([`ConditionedCurrent::front_end_cutoff_hz`] says when it is clear enough).
 //! * Anything else (a continuously varying current, a coil current rising over tens of
 //!   samples) is left as recorded.
 
@@ -46,7 +46,7 @@ pub const MAX_TRANSITION_SAMPLES: usize = 16;
 /// Smallest step, in σ_I.
 pub const MIN_STEP_PER_SIGMA: f64 = 8.0;
 
-/// Smallest step that enters the cut-off fit ([`CurrentChannel::cutoff_from_steps`]), in
+/// Smallest step that enters the cut-off fit ([`ConditionedCurrent::cutoff_from_steps`]), in
 /// σ_I.
 pub const MIN_CUTOFF_STEP_PER_SIGMA: f64 = 30.0;
 /// Largest relative standard error of a cut-off read from the steps that is taken.
@@ -95,7 +95,7 @@ impl CurrentStep {
 
 /// The current channel as conditioned.
 #[derive(Debug, Clone, Default)]
-pub struct CurrentChannel {
+pub struct ConditionedCurrent {
     /// The recorded current \[A\].
     pub raw: Vec<f64>,
     /// White-noise σ of the channel \[A\].
@@ -104,7 +104,7 @@ pub struct CurrentChannel {
     pub plateaus: Vec<(Range<usize>, f64)>,
     /// Steps between plateaus.
     pub steps: Vec<CurrentStep>,
-    /// The anti-alias cut-off the steps show ([`CurrentChannel::cutoff_from_steps`]).
+    /// The anti-alias cut-off the steps show ([`ConditionedCurrent::cutoff_from_steps`]).
     pub cutoff: Option<CutoffFromSteps>,
 }
 
@@ -144,10 +144,10 @@ fn noise_sigma(i: &[f64], h: &[f64]) -> f64 {
     numerics::stats::median(&mut d).map_or(0.0, |m| 1.4826 * m / 1.5f64.sqrt())
 }
 
-impl CurrentChannel {
+impl ConditionedCurrent {
     /// Find the plateaus and steps of the recorded current `i` (`h[j]` the step to the
     /// previous sample, 0 at a time gap), and the cut-off they show at the record's sample
-    /// interval `dt` ([`CurrentChannel::cutoff_from_steps`]).
+    /// interval `dt` ([`ConditionedCurrent::cutoff_from_steps`]).
     pub fn condition(t: &[f64], h: &[f64], i: &[f64], dt: f64) -> Self {
         let n = i.len();
         let scale = i.iter().fold(0.0f64, |m, x| m.max(x.abs()));
@@ -447,7 +447,7 @@ mod tests {
     #[test]
     fn plateaus_take_their_level_and_steps_their_true_time() {
         let (t, h, i, truth) = record(3e-3);
-        let c = CurrentChannel::condition(&t, &h, &i, 1e-3);
+        let c = ConditionedCurrent::condition(&t, &h, &i, 1e-3);
         assert!((c.noise_a / 3e-3 - 1.0).abs() < 0.1, "σ_I {}", c.noise_a);
         assert_eq!(c.steps.len(), 3, "{:?}", c.steps);
         assert_eq!(c.plateaus.len(), 4);
@@ -484,7 +484,7 @@ mod tests {
         // Three steps of 0.5–1.2 A through 300 Hz (0.3 f_s) with 3 mA of noise: the
         // cut-off comes back within 2 % and within three of its standard errors.
         let (t, h, i, _) = record(3e-3);
-        let c = CurrentChannel::condition(&t, &h, &i, 1e-3);
+        let c = ConditionedCurrent::condition(&t, &h, &i, 1e-3);
         let est = c.cutoff.expect("three steps of 170-400 σ_I");
         assert_eq!(est.steps, 3);
         assert!(
@@ -511,11 +511,11 @@ mod tests {
                 }
             })
             .collect();
-        let c = CurrentChannel::condition(&t, &h, &coil, 1e-3);
+        let c = ConditionedCurrent::condition(&t, &h, &coil, 1e-3);
         assert_eq!(c.steps.len(), 1);
         assert_eq!(c.front_end_cutoff_hz(), None, "{:?}", c.cutoff);
         // The Butterworth record's is taken.
-        let c = CurrentChannel::condition(&t, &h, &i, 1e-3);
+        let c = ConditionedCurrent::condition(&t, &h, &i, 1e-3);
         assert_eq!(c.front_end_cutoff_hz(), Some(c.cutoff.unwrap().cutoff_hz));
     }
 
@@ -526,7 +526,7 @@ mod tests {
         let t: Vec<f64> = (0..n).map(|k| k as f64 * 5e-3).collect();
         let h: Vec<f64> = (0..n).map(|k| if k == 0 { 0.0 } else { 5e-3 }).collect();
         let i: Vec<f64> = (0..n).map(|k| if k < 200 { 0.25 } else { 0.5 }).collect();
-        let c = CurrentChannel::condition(&t, &h, &i, 5e-3);
+        let c = ConditionedCurrent::condition(&t, &h, &i, 5e-3);
         assert_eq!(c.plateaus.len(), 2);
         assert_eq!((c.plateaus[0].0.end, c.plateaus[1].0.start), (200, 200));
         assert!(c.steps.is_empty());
@@ -541,7 +541,7 @@ mod tests {
         let t: Vec<f64> = (0..n).map(|k| k as f64 * 1e-3).collect();
         let h: Vec<f64> = (0..n).map(|k| if k == 0 { 0.0 } else { 1e-3 }).collect();
         let i: Vec<f64> = t.iter().map(|x| 1.0 + 0.5 * (6.0 * x).sin()).collect();
-        let c = CurrentChannel::condition(&t, &h, &i, 1e-3);
+        let c = ConditionedCurrent::condition(&t, &h, &i, 1e-3);
         let p = c.place(&t, &h, None);
         // A smooth sweep is "stable" sample to sample but drifts: no plateau keeps it.
         assert!(c.plateaus.is_empty(), "{:?}", c.plateaus.len());

@@ -103,7 +103,7 @@ pub struct Prepared {
     pub subgrid: crate::subsample::SubGrid,
     /// The current channel's plateaus and steps ([`crate::current`]); `i` is its placed
     /// current.
-    pub current: crate::current::CurrentChannel,
+    pub current: crate::current::ConditionedCurrent,
     /// Per sample j: where in the interval (j − 1, j] the placed current steps.
     pub current_step_at: Vec<Option<f64>>,
     /// `true` when the knots are the record's own held levels (at most 12 distinct
@@ -157,7 +157,7 @@ impl Prepared {
     }
 
     /// Put the rig's anti-alias filter behind every model force (`None`: no filter): the
-    /// current steps are placed again under it ([`crate::current::CurrentChannel::place`])
+    /// current steps are placed again under it ([`crate::current::ConditionedCurrent::place`])
     /// and the sub-sample grid rebuilt.
     pub fn set_anti_alias(&mut self, aa: Option<crate::antialias::AntiAlias>) {
         self.anti_alias = aa;
@@ -983,7 +983,7 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
     let f = s.force_n.clone();
     let h = steps(&t);
     let m = crate::measure::measure(&t, &x, &s.velocity_m_s, &f, &h, s.velocity_derived);
-    let current = crate::current::CurrentChannel::condition(
+    let current = crate::current::ConditionedCurrent::condition(
         &t,
         &h,
         &s.current_a,

@@ -138,7 +138,7 @@ pub struct Evidence {
     pub structure_region: String,
     /// The calibrated evidence (the `calibrated` selector).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub calibration: Option<crate::calibrate::Calibrated>,
+    pub calibration: Option<crate::calibrate::CalibratedEvidence>,
 }
 
 /// An accepted effect.

@@ -4,7 +4,7 @@ use std::collections::BTreeMap;
 
 use twin::Effect;
 
-use crate::calibrate::{self, Calibrated, Calibration};
+use crate::calibrate::{self, CalibratedEvidence, Calibration};
 use crate::data::{prepare, DataError, Phase, Prepared, Signals};
 use crate::model::{effect_params, evaluate, extend, fit, Fit, FitDetail, FrictionScale, Layout};
 use crate::report::*;
@@ -1027,7 +1027,7 @@ fn explanation(e: Effect, p: &BTreeMap<String, Parameter>) -> String {
 /// A candidate's verdict in one round.
 struct Verdict {
     judged: Judged,
-    calibrated: Option<Calibrated>,
+    calibrated: Option<CalibratedEvidence>,
     pass: bool,
     /// A seal friction that beat its null and predicts the held-out blocks better, but as
     /// the fluid's yield-scaled step ([`Judged::fluid_shape`]): the final model may carry
@@ -1557,7 +1557,7 @@ pub fn diagnose(signals: &Signals, input: &str, opts: &Options) -> Result<Diagno
 /// Fit the baseline and, with it, the rig's anti-alias filter ([`crate::antialias`]).
 ///
 /// Where the current channel's steps show the front end's cut-off
-/// ([`crate::current::CurrentChannel::front_end_cutoff_hz`]), the baseline is fitted under
+/// ([`crate::current::ConditionedCurrent::front_end_cutoff_hz`]), the baseline is fitted under
 /// that filter. Otherwise it is fitted without a filter and then, from there, under a second-order
 /// Butterworth at each cut-off of [`crate::antialias::CUTOFF_GRID`] (in parallel); the
 /// cut-off with the smallest fitting SSE is the filter's best guess. A low-pass on the
