@@ -187,15 +187,8 @@ impl Outcome {
     /// sent, stepped and received centrally, the dampers without loss, the CPU use and the
     /// sample-to-monitor latency.
     fn report(&self, args: &FleetArgs, namespace: &str, seen: &[Seen]) -> serde_json::Value {
-        let Outcome {
-            sent,
-            counts,
-            stand_summary,
-            wall,
-            cpu,
-            cores,
-        } = self;
-        let (wall, cpu, cores) = (*wall, *cpu, *cores);
+        let (sent, counts, stand_summary) = (&self.sent, &self.counts, &self.stand_summary);
+        let (wall, cpu, cores) = (self.wall, self.cpu, self.cores);
         let n = sent.len();
         let mut all_delays: Vec<f64> = seen.iter().flat_map(|s| s.delays.iter().copied()).collect();
         all_delays.sort_by(f64::total_cmp);
