@@ -822,7 +822,13 @@ impl<'a> BlockSplit<'a> {
         let by_segment = validation_blocks(t, self.segment, self.segments, self.period, "segments");
         let segments_few_long = few_long_parts(t, self.segment, self.segments, self.period);
         let runs_few_long = few_long_parts(t, &self.run, self.runs, self.period);
-        if let Some(b) = self.halved_runs(&by_segment.0, segments_few_long, runs_few_long) {
+        // Every path below reads it at least once.
+        let unseen_by_segment = self.unseen(&by_segment.0);
+        if let Some(b) = self.halved_runs(
+            (&by_segment.0, unseen_by_segment),
+            segments_few_long,
+            runs_few_long,
+        ) {
             let runs = self.runs;
             (
                 b,
@@ -834,16 +840,14 @@ impl<'a> BlockSplit<'a> {
                     2 * runs
                 ),
             )
-        } else if !segments_few_long && runs_few_long && self.unseen(&by_segment.0) > 0 {
+        } else if !segments_few_long && runs_few_long && unseen_by_segment > 0 {
             let by_run = validation_blocks(t, &self.run, self.runs, self.period, "current levels");
-            if self.unseen(&by_run.0) < self.unseen(&by_segment.0) {
+            if self.unseen(&by_run.0) < unseen_by_segment {
                 by_run
             } else {
                 by_segment
             }
-        } else if (self.unseen(&by_segment.0) > 0 || self.one_sided(&by_segment.0))
-            && !segments_few_long
-        {
+        } else if (unseen_by_segment > 0 || self.one_sided(&by_segment.0)) && !segments_few_long {
             self.nearby_equal_blocks(by_segment)
         } else {
             by_segment
@@ -859,7 +863,7 @@ impl<'a> BlockSplit<'a> {
     /// better by 0.1 and leaves no more levels unfitted.
     fn halved_runs(
         &self,
-        by_segment: &[usize],
+        (by_segment, unseen_by_segment): (&[usize], usize),
         segments_few_long: bool,
         runs_few_long: bool,
     ) -> Option<Vec<usize>> {
@@ -869,15 +873,16 @@ impl<'a> BlockSplit<'a> {
             && run_range
                 .iter()
                 .all(|&(a, b)| a < b && t[b - 1] - t[a] >= (t[n - 1] - t[0]) / 8.0);
-        (!segments_few_long
-            && !runs_few_long
-            && runs_long
-            && self.worst_share(by_segment) < 1.0 / 3.0)
-            .then(|| blocks_within_parts(t, &run_range, |_, _| 2).0)
-            .filter(|b| {
-                self.worst_share(b) > self.worst_share(by_segment) + 0.1
-                    && self.unseen(b) <= self.unseen(by_segment)
-            })
+        if segments_few_long || runs_few_long || !runs_long {
+            return None;
+        }
+        let share_by_segment = self.worst_share(by_segment);
+        if share_by_segment >= 1.0 / 3.0 {
+            return None;
+        }
+        let b = blocks_within_parts(t, &run_range, |_, _| 2).0;
+        (self.worst_share(&b) > share_by_segment + 0.1 && self.unseen(&b) <= unseen_by_segment)
+            .then_some(b)
     }
 
     /// Equal blocks can alias with a periodic current sequence (4 levels of 0.9 s each

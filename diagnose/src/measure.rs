@@ -398,23 +398,18 @@ fn rebuilt_velocity(
     }
     let fv = local_cubic(t, v, chosen, runs);
     let sv = noise_sigma(v, &fv);
-    let fused = (0..t.len())
+    // Per sample: the displacement slope's error variance vx and the channel's vv.
+    let (fused, v_sigma) = (0..t.len())
         .map(|j| {
             let vx = var_vx[j];
             let vv = sv * sv * fv.leverage[j];
-            if vv <= 0.0 || !vx.is_finite() {
-                return fv.value[j];
-            }
-            if vx <= 0.0 {
-                return fx.slope[j];
-            }
-            (fx.slope[j] / vx + fv.value[j] / vv) / (1.0 / vx + 1.0 / vv)
-        })
-        .collect();
-    let v_sigma = (0..t.len())
-        .map(|j| {
-            let vx = var_vx[j];
-            let vv = sv * sv * fv.leverage[j];
+            let value = if vv <= 0.0 || !vx.is_finite() {
+                fv.value[j]
+            } else if vx <= 0.0 {
+                fx.slope[j]
+            } else {
+                (fx.slope[j] / vx + fv.value[j] / vv) / (1.0 / vx + 1.0 / vv)
+            };
             let v_var = if vx.is_finite() && vx > 0.0 && vv > 0.0 {
                 1.0 / (1.0 / vx + 1.0 / vv)
             } else if vv > 0.0 {
@@ -422,9 +417,9 @@ fn rebuilt_velocity(
             } else {
                 vx
             };
-            standard_error(v_var)
+            (value, standard_error(v_var))
         })
-        .collect();
+        .unzip();
     (fused, v_sigma, Some(sv))
 }
 

@@ -804,26 +804,45 @@ fn fit_candidate_pair(
 /// excess is itself noise.
 const EXCESS_OVER_NOISE: f64 = 1.2;
 
+/// The current model's side of every comparison [`judge`] makes in a round, the same for
+/// each of the round's candidates: its held-out RMS, its held-out blocks and its
+/// residual's structure by region.
+struct Reference<'a> {
+    fit: &'a Fit,
+    holdout_rmse: f64,
+    blocks: Vec<HeldOutBlock>,
+    stats: RegionStats,
+}
+
+impl<'a> Reference<'a> {
+    fn new(d: &Prepared, reg: &Regions, current: &'a Fit) -> Self {
+        Reference {
+            fit: current,
+            holdout_rmse: current.holdout_rmse(d),
+            blocks: holdout_blocks(d, &current.force),
+            stats: region_stats(d, reg, &residual(d, &current.force), true),
+        }
+    }
+}
+
 #[allow(clippy::too_many_arguments)]
 fn judge(
     d: &Prepared,
     reg: &Regions,
-    current: &Fit,
+    reference: &Reference,
     flags: &[usize],
     cand: Fit,
     e: Effect,
     partner: Option<Effect>,
     th: &AcceptanceThresholds,
 ) -> Judged {
-    let before = current.holdout_rmse(d);
+    let current = reference.fit;
+    let before = reference.holdout_rmse;
     let after = cand.holdout_rmse(d);
-    let (blocks_before, blocks_after) = (
-        holdout_blocks(d, &current.force),
-        holdout_blocks(d, &cand.force),
-    );
-    let (_, z) = stats::paired_z(&block_sse(&blocks_before), &block_sse(&blocks_after));
+    let (blocks_before, blocks_after) = (&reference.blocks, holdout_blocks(d, &cand.force));
+    let (_, z) = stats::paired_z(&block_sse(blocks_before), &block_sse(&blocks_after));
     let (typical_before, typical_after, worst_ratio) =
-        typical_block_rmse(&blocks_before, &blocks_after);
+        typical_block_rmse(blocks_before, &blocks_after);
     let n_eff = stats::effective_n(current.train_n, current.rho1);
     let dp = (cand.layout.len() - current.layout.len()) as f64;
     let dbic = n_eff * (cand.train_sse / current.train_sse).ln() + dp * n_eff.ln();
@@ -844,7 +863,7 @@ fn judge(
     let best = structure_removed(
         d,
         reg,
-        (current, &cand),
+        (reference, &cand),
         flags,
         (before, after),
         (typical_before, typical_after, worst_ratio),
@@ -887,15 +906,14 @@ fn judge(
 fn structure_removed(
     d: &Prepared,
     reg: &Regions,
-    (current, cand): (&Fit, &Fit),
+    (reference, cand): (&Reference, &Fit),
     flags: &[usize],
     (before, after): (f64, f64),
     (typical_before, typical_after, worst_ratio): (f64, f64, f64),
 ) -> (f64, String) {
-    let r0 = residual(d, &current.force);
-    let r1 = residual(d, &cand.force);
-    let s0 = region_stats(d, reg, &r0, true);
-    let s1 = region_stats(d, reg, &r1, true);
+    let current = reference.fit;
+    let s0 = &reference.stats;
+    let s1 = region_stats(d, reg, &residual(d, &cand.force), true);
     // The candidate's own target: the region where its prediction changes most.
     let mut change = vec![(0.0, 0usize); reg.names.len()];
     for j in 0..d.len() {
@@ -1062,9 +1080,10 @@ fn fit_and_judge(
             .filter(|(a, b)| remaining.contains(a) && remaining.contains(b))
             .map(|(a, b)| (a, Some(b))),
     );
+    let reference = Reference::new(d, reg, current);
     numerics::parallel::map_indexed(cands.len(), cands.len(), |k| {
         let fit = fit_candidate_pair(d, current, cands[k], 40, FitDetail::Full);
-        judge(d, reg, current, flags, fit, cands[k].0, cands[k].1, th)
+        judge(d, reg, &reference, flags, fit, cands[k].0, cands[k].1, th)
     })
 }
 
@@ -1527,7 +1546,7 @@ fn sindy_selection(d: &Prepared, reg: &Regions, base: &Fit, opts: &Options) -> S
         let j = judge(
             d,
             reg,
-            &sel.current,
+            &Reference::new(d, reg, &sel.current),
             &flags,
             cand,
             e,
