@@ -1,0 +1,100 @@
+"""Why each hidden effect of a proving-ground study was missed, as read from the diagnosis
+JSON of each record (its last trial of the effect: the round it was last tried in).
+
+    python3 scripts/proving_ground/misses.py DIR [--selector calibrated]
+
+DIR is a study's --out directory (results.json and seedNNNN.<selector>.json). Standard
+library only. The causes, in the order they are tested:
+
+  absorbed        its statistic T is below the screen (not bootstrapped): the baseline and
+                  the effects already in leave nothing for it to explain
+  below null      T is below its calibrated (bootstrap) threshold
+  no presliding   a seal friction whose step the interval rule rejects (the fluid's shape,
+                  or no presliding displacement to tell it from the fluid: docs/diagnose.md)
+  held-out worse  T passes but the held-out RMS rises by more than 10 % (the fit went to
+                  another basin, or predicts the held-out blocks worse)
+  no gain         T passes, the held-out RMS does not fall (or falls too little)
+  interval        T passes, the 95 % interval is not clear of the no-effect value
+  structure       T passes, the held-out structure does not fall enough
+  other           every rule shown passes (another candidate won, or an undecided group)
+
+These read the trial's flags (held-out, criterion, interval, structure) and its
+calibrated evidence; they are a summary, not the selection's own reasoning, which is in
+the record's Markdown report.
+"""
+import argparse
+import collections
+import json
+import os
+
+
+def cause(effect, trial):
+    ev = trial["evidence"]
+    cal = ev.get("calibration") or {}
+    t, thr = cal.get("statistic", 0.0), cal.get("threshold", 0.0)
+    held, _criterion, interval, structure = trial["passed"]
+    before, after = ev["holdout_rmse_before_N"], ev["holdout_rmse_after_N"]
+    if t < thr and cal.get("replicates", 0) == 0:
+        return "absorbed"
+    if t < thr:
+        return "below null"
+    if effect == "seal_friction" and not interval:
+        return "no presliding"
+    if after > 1.1 * before:
+        return "held-out worse"
+    if not held and after >= before:
+        return "no gain"
+    if not interval:
+        return "interval"
+    if not structure:
+        return "structure"
+    return "other"
+
+
+CAUSES = ["absorbed", "below null", "no presliding", "held-out worse", "no gain",
+          "interval", "structure", "other", "not tried"]
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("dir")
+    ap.add_argument("--selector", default="calibrated")
+    a = ap.parse_args()
+    res = json.load(open(os.path.join(a.dir, "results.json")))
+    table = collections.defaultdict(collections.Counter)
+    seeds = collections.defaultdict(list)
+    for rec in res["records"]:
+        run = next((r for r in rec["runs"] if r["selector"] == a.selector), None)
+        if run is None or run["rc"] != 0:
+            continue
+        missed = [h for h in run["hidden"] if h not in run["findings"]
+                  and not any(h in g for g in run.get("undecided", []))]
+        if not missed:
+            continue
+        path = os.path.join(a.dir, "seed%04d.%s.json" % (rec["seed"], a.selector))
+        last = {}
+        for tr in json.load(open(path))["trials"]:
+            last[tr["effect"]] = tr
+        for h in missed:
+            c = cause(h, last[h]) if h in last else "not tried"
+            table[h][c] += 1
+            seeds[c].append(rec["seed"])
+    effects = sorted(table)
+    print("| missed effect | " + " | ".join(CAUSES) + " | all |")
+    print("|---|" + "---|" * (len(CAUSES) + 1))
+    for e in effects:
+        row = [str(table[e][c]) if table[e][c] else "·" for c in CAUSES]
+        print(f"| `{e}` | " + " | ".join(row) + f" | {sum(table[e].values())} |")
+    tot = collections.Counter()
+    for e in effects:
+        tot.update(table[e])
+    print("| all | " + " | ".join(str(tot[c]) if tot[c] else "·" for c in CAUSES)
+          + f" | {sum(tot.values())} |")
+    print()
+    for c in CAUSES:
+        if seeds[c]:
+            print(f"- {c}: seeds {', '.join(str(s) for s in sorted(set(seeds[c])))}")
+
+
+if __name__ == "__main__":
+    main()
