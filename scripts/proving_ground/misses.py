@@ -13,10 +13,11 @@ library only. The causes, in the order they are tested:
                   or no presliding displacement to tell it from the fluid: docs/diagnose.md)
   held-out worse  T passes but the held-out RMS rises by more than 10 % (the fit went to
                   another basin, or predicts the held-out blocks worse)
-  no gain         T passes, the held-out RMS does not fall (or falls too little)
+  no gain         T passes, the held-out RMS does not fall at all
   interval        T passes, the 95 % interval is not clear of the no-effect value
   structure       T passes, the held-out structure does not fall enough
-  other           every rule shown passes (another candidate won, or an undecided group)
+  other           none of the above: the record's report says why (another candidate
+                  won, a held-out fall the rules' held-out test does not count, ...)
 
 These read the trial's flags (held-out, criterion, interval, structure) and its
 calibrated evidence; they are a summary, not the selection's own reasoning, which is in
