@@ -271,11 +271,16 @@ fn nothing_found_still_exits_zero() {
     assert_eq!(o.status.code(), Some(0), "stderr: {}", stderr(&o));
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(
-        stdout.contains("nothing in the library is missing"),
+        stdout.contains("nothing in the library is missing above its detection limit"),
         "{stdout}"
     );
     let j = json(&out_json);
     assert!(j["findings"].as_array().unwrap().is_empty());
+    // What "nothing is missing" means on this record: a limit for every effect of the
+    // library (the seal friction twice: with presliding, and as a step never reported).
+    let limits = j["detection_limits"].as_array().unwrap();
+    assert_eq!(limits.len(), 7, "{limits:?}");
+    assert!(stdout.contains("## Detection limits"), "{stdout}");
     assert!(j["unexplained"].as_array().unwrap().is_empty());
     assert_eq!(j["selector"], "calibrated");
     assert_eq!(

@@ -14,6 +14,7 @@ pub mod bingham;
 pub mod calibrate;
 pub mod current;
 pub mod data;
+pub mod limits;
 pub mod measure;
 pub mod model;
 pub mod report;

@@ -289,6 +289,11 @@ const C_MIN: f64 = 1e-3;
 /// Smallest presliding displacement of the Dahl friction \[m\] (0.1 µm: a step in sgn v).
 pub const XP_MIN: f64 = 1e-7;
 
+/// Smallest deflection of a chamber compliance at the record's peak force, as a share of
+/// the displacement channel's noise, for it to count as a compressibility
+/// (`select::compliance_resolved`).
+pub const MIN_COMPLIANCE_DEFLECTION_PER_NOISE: f64 = 0.1;
+
 /// Largest presliding displacement of the Dahl friction \[m\]: a seal's presliding range
 /// is micrometres to a tenth of a millimetre. A force that builds up over a longer travel
 /// after each reversal is a spring in series with the flow: the chamber compliance of
@@ -881,7 +886,7 @@ pub fn knot_penalty(d: &Prepared, lay: &Layout, theta: &[f64]) -> f64 {
 }
 
 /// Adds the penalty's curvature and gradient to the normal equations `(JᵀWJ, JᵀWr)`.
-fn add_knot_penalty(
+pub(crate) fn add_knot_penalty(
     d: &Prepared,
     lay: &Layout,
     theta: &[f64],
@@ -1227,7 +1232,7 @@ pub fn fit_with(
 
 /// Zeroes the rows and columns of the held parameters ([`Layout::held_parameters`]) in
 /// the normal equations, so a step leaves them where they stand.
-fn hold_parameters(
+pub(crate) fn hold_parameters(
     lay: &Layout,
     jtj: &mut nalgebra::DMatrix<f64>,
     jtr: &mut nalgebra::DVector<f64>,
@@ -1239,7 +1244,7 @@ fn hold_parameters(
     }
 }
 
-fn normal_equations(
+pub(crate) fn normal_equations(
     d: &Prepared,
     force: &[f64],
     jac: &[f64],

@@ -241,6 +241,32 @@ pub struct Undecided {
     pub why: String,
 }
 
+/// The smallest size of a library effect the final model lacks that this record could
+/// have shown under the calibrated selector's rules ([`crate::limits`]): below it the
+/// effect may be present and not be found.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct DetectionLimit {
+    /// Effect id.
+    pub effect: String,
+    /// The shape the limit is stated at (a friction's presliding, a constant compliance).
+    pub shape: String,
+    /// The effect's size parameter.
+    pub parameter: String,
+    /// Its unit.
+    pub unit: String,
+    /// The limit in `unit` (`null`: not separable on this record at any size).
+    pub limit: Option<f64>,
+    /// RMS of the effect's force at the limit \[N\].
+    #[serde(rename = "effect_rms_N")]
+    pub effect_rms_n: Option<f64>,
+    /// Share of the effect's (weighted) force the final model's own parameters take up
+    /// when refitted: 1 is an effect the fitted fluid law imitates wholly.
+    pub absorbed_share: f64,
+    /// The rule that sets the limit (statistic, interval, held-out gain, resolved
+    /// deflection), or why there is none.
+    pub rule: String,
+}
+
 /// One candidate tried in one round of forward selection.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct Trial {
@@ -360,6 +386,9 @@ pub struct Report {
     pub fluid_shape: Vec<FluidShape>,
     /// Structure the final model leaves beyond noise (empty when the residual is noise).
     pub unexplained: Vec<Unexplained>,
+    /// The smallest size of each library effect the final model lacks that the record
+    /// could have shown (the calibrated selector only; empty for the others).
+    pub detection_limits: Vec<DetectionLimit>,
     /// Current knots of the final model that the record does not identify (their force
     /// law ran to values no damper has; [`UnidentifiedKnot`]).
     pub unidentified_knots: Vec<UnidentifiedKnot>,
@@ -420,6 +449,7 @@ pub fn render_markdown(r: &Report) -> String {
     );
     write_verdict(&mut s, r);
     write_unexplained(&mut s, r);
+    write_detection_limits(&mut s, r);
     write_measurement(&mut s, r);
     write_fit(&mut s, r);
     write_residual_statistics(&mut s, r);
@@ -437,7 +467,13 @@ fn write_verdict(s: &mut String, r: &Report) {
             let _ = writeln!(
                 s,
                 "No candidate effect is supported, and the final residual shows no structure \
-                 beyond noise: nothing in the library is missing.\n"
+                 beyond noise: nothing in the library is missing above its detection limit on \
+                 this record{}.\n",
+                if r.detection_limits.is_empty() {
+                    ""
+                } else {
+                    " (see *Detection limits*: smaller effects may be present)"
+                }
             );
         } else {
             let _ = writeln!(
@@ -561,6 +597,49 @@ fn write_unexplained(s: &mut String, r: &Report) {
                 u.correlates_with.join(", ")
             );
         }
+    }
+}
+
+/// The detection limits: the smallest size of each library effect the final model lacks
+/// that this record could have shown ([`crate::limits`]).
+fn write_detection_limits(s: &mut String, r: &Report) {
+    use std::fmt::Write;
+    if r.detection_limits.is_empty() {
+        return;
+    }
+    let _ = writeln!(s, "\n## Detection limits\n");
+    let _ = writeln!(
+        s,
+        "The smallest size of each effect the final model lacks that this record could have \
+         shown under the rules above (about where it would be found half the time), from the \
+         final model's linearisation; below it an effect may be present and not found. \
+         \"Absorbed\" is the share of the effect's force the final model's own parameters \
+         imitate when refitted.\n"
+    );
+    let _ = writeln!(
+        s,
+        "| effect | shape | limit | its force RMS (N) | absorbed | set by |"
+    );
+    let _ = writeln!(s, "| --- | --- | --- | --- | --- | --- |");
+    for l in &r.detection_limits {
+        let limit = l
+            .limit
+            .map(|v| format!("{} = {v:.3e} {}", l.parameter, l.unit))
+            .unwrap_or_else(|| "none".into());
+        let rms = l
+            .effect_rms_n
+            .map(|v| format!("{v:.2}"))
+            .unwrap_or_else(|| "–".into());
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {:.1} % | {} |",
+            l.effect,
+            l.shape,
+            limit,
+            rms,
+            100.0 * l.absorbed_share,
+            l.rule
+        );
     }
 }
 

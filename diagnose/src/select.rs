@@ -1905,6 +1905,11 @@ pub fn diagnose_with_progress(
     let findings = findings(&d, &sel.accepted, &sel.undecided_effects, &current);
     let r_final = residual(&d, &current.force);
     let unexplained = unexplained(&d, &r_final);
+    let detection_limits = if opts.selector == Selector::Calibrated {
+        crate::limits::detection_limits(&d, &current, &sel.trials, &opts.calibration)
+    } else {
+        Vec::new()
+    };
     let mut unidentified = held_knots;
     let more: Vec<UnidentifiedKnot> = unidentified_knots(&d, &current)
         .into_iter()
@@ -1938,6 +1943,7 @@ pub fn diagnose_with_progress(
         withdrawn,
         fluid_shape: sel.fluid_shape,
         unexplained,
+        detection_limits,
         unidentified_knots: unidentified,
         slow_knots,
         trials: sel.trials,
@@ -2038,9 +2044,7 @@ fn seal_is_resolved(cand: &Fit) -> bool {
         .is_some_and(|k| presliding_resolved(cand.theta[k + 1], cand.se[k + 1]))
 }
 
-/// Smallest deflection of a chamber compliance at the record's peak force, as a share of
-/// the displacement channel's noise, for it to count as a compressibility.
-pub const MIN_COMPLIANCE_DEFLECTION_PER_NOISE: f64 = 0.1;
+pub use crate::model::MIN_COMPLIANCE_DEFLECTION_PER_NOISE;
 
 /// Whether a chamber compliance `c` \[m/N\] is large enough to be a compressibility the
 /// record resolves: its deflection at the peak force, `c · max |F|` (the piston travel the

@@ -77,6 +77,10 @@ def run_one(task):
         gen_cpu = time.process_time() - t0
     with open(meta_path) as f:
         meta = json.load(f)
+    # The scenario file's hash: a study on another machine can tell whether its files or
+    # only its decisions differ (numba and numpy dispatch on the CPU; glibc's libm too).
+    with open(csv, "rb") as f:
+        csv_sha = hashlib.sha256(f.read()).hexdigest()
     res = []
     for sel in selectors:
         js = os.path.join(out, f"seed{seed:04d}.{sel}.json")
@@ -102,7 +106,7 @@ def run_one(task):
                      u=[round(e["u_achieved"], 2) for e in meta["effects"]],
                      u_unabsorbed=[round(e.get("u_unabsorbed", float("nan")), 2)
                                    for e in meta["effects"]],
-                     sigma_F=meta.get("sigma_F_N"))
+                     sigma_F=meta.get("sigma_F_N"), csv_sha256=csv_sha)
         if rc == 0 and os.path.exists(js):
             with open(js) as f:
                 d = json.load(f)
@@ -239,6 +243,18 @@ def summarise(records, selectors, label_of):
     return "\n".join(lines), summary
 
 
+def scenario_hashes_matching(records):
+    """(identical, compared): the records' scenario files against the recorded hashes."""
+    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "scenario_sha256.txt")
+    if not os.path.exists(path):
+        return 0, 0
+    with open(path) as f:
+        known = dict(line.split() for line in f if line.strip())
+    pairs = [(known.get(str(r["seed"])), r["runs"][0].get("csv_sha256")) for r in records]
+    pairs = [(k, h) for k, h in pairs if k and h]
+    return sum(k == h for k, h in pairs), len(pairs)
+
+
 def parse_seeds(s):
     """`A:B` (B exclusive), a single seed, or a comma-separated list of either."""
     out = []
@@ -331,6 +347,11 @@ def main():
     libs = generate.library_versions()
     head.append("Generator libraries (scenario files depend on them): "
                 + ", ".join(f"{k} {v}" for k, v in libs.items()) + ".\n")
+    same, recorded = scenario_hashes_matching(records)
+    if recorded:
+        head.append(f"Scenario files: {same} of {recorded} identical to the hashes recorded in "
+                    "`scripts/proving_ground/scenario_sha256.txt` (session 67, Intel Xeon); a "
+                    "difference is the generator's numerics on this machine, not diagnose.\n")
     if n_reused:
         head.append(f"{n_reused} of {n_runs} diagnose runs were reused from earlier runs of the same binary "
                     "(`--resume`); their wall times are those measured then.\n")
