@@ -10,10 +10,12 @@ import os
 import sys
 import time
 
-import numpy as np
-from scipy import integrate, interpolate
-
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import pin_blas  # noqa: E402,F401  (before numpy: the same kernels on every machine)
+
+import numpy as np  # noqa: E402
+from scipy import integrate, interpolate  # noqa: E402
+
 import generate  # noqa: E402
 import physics  # noqa: E402
 from physics import P  # noqa: E402

@@ -32,11 +32,13 @@ import subprocess
 import sys
 import time
 
-import numpy as np
-
 HERE = os.path.dirname(os.path.abspath(__file__))
 if HERE not in sys.path:
     sys.path.insert(0, HERE)
+import pin_blas  # noqa: E402,F401  (before numpy: the same kernels on every machine)
+
+import numpy as np  # noqa: E402
+
 from pgstats import wilson  # noqa: E402
 REPO = os.path.dirname(os.path.dirname(HERE))
 EFFECTS = ("fluid_compressibility", "gas_spring", "seal_friction", "thermal_softening",

@@ -14,10 +14,12 @@ import multiprocessing as mp
 import os
 import sys
 
-import numpy as np
-
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
+import pin_blas  # noqa: E402,F401  (before numpy: the same kernels on every machine)
+
+import numpy as np  # noqa: E402
+
 from estimator_coverage import _record_task, _seeds  # noqa: E402
 
 RANGES = ((0.0, 0.25), (0.25, 0.5), (0.5, 1.0), (1.0, np.inf))

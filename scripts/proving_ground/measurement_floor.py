@@ -24,10 +24,13 @@ import csv
 import os
 import sys
 
-import numpy as np
-from scipy import signal
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import pin_blas  # noqa: E402,F401  (before numpy: the same kernels on every machine)
 
-import generate as g
+import numpy as np  # noqa: E402
+from scipy import signal  # noqa: E402
+
+import generate as g  # noqa: E402
 import physics
 
 

@@ -20,9 +20,14 @@ so that Q = 2 b L^2 Phi(tau_w) / dp^2 (exact for any generalised-Newtonian law):
     3 Papanastasiou      tau = mu gdot + tau0 (1 - exp(-m gdot))
 """
 import math
+import os
+import sys
 
-import numpy as np
-from numba import njit
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import pin_blas  # noqa: E402,F401  (before numpy: the same kernels on every machine)
+
+import numpy as np  # noqa: E402
+from numba import njit  # noqa: E402
 
 BINGHAM, HERSCHEL_BULKLEY, BIVISCOUS, PAPANASTASIOU = 0, 1, 2, 3
 FLUID_LAWS = ("bingham", "herschel_bulkley", "biviscous", "papanastasiou")
