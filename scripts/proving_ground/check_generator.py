@@ -92,25 +92,47 @@ def sine_rig(seed, f=2.0, A=8e-3, I=0.8, fsi=8000, cycles=4):
     return geo, fl, p, t, x, v, a, icmd, 1 / fsi
 
 
+def reversal_steps(v):
+    """Fine-grid steps at which the velocity changes sign, with one step either side."""
+    mask = np.zeros(len(v), bool)
+    for i in np.where(np.sign(v[1:]) != np.sign(v[:-1]))[0]:
+        mask[max(0, i - 1):i + 3] = True
+    return mask
+
+
 def compressible_limit():
+    """K -> inf must give the incompressible force. The two branches sample the step in
+    which the rod reverses differently: the incompressible one writes the step's mean force
+    (`physics.reversal_split`), the compressible one the chamber pressure at the end of its
+    last backward-Euler sub-step, so on a Bingham fluid one fine sample per reversal differs
+    by up to the whole 2 F_y jump whatever K is. The limit is therefore read on the steps
+    away from a reversal; the reversal steps' part is stated on the record (the rig's
+    anti-alias filter, x16 decimation) against the smallest force noise the generator
+    draws, 0.5 % of the RMS force (`draw_measurement`)."""
+    M, fc = 16, 150.0
     for seed in (3, 4, 5):
         geo, fl, p, t, x, v, a, icmd, dt = sine_rig(seed)
+        away = ~reversal_steps(v)
         for gas in (0, 1):
             pb = p.copy()
             if gas:
                 generate.apply_effect(pb, "gas_spring", dict(Vg0_ref=geo["Ar"] * 0.008 / 0.2, kappa=1.2), 1.0)
             F0 = physics.simulate(x, v, a, icmd, dt, pb)[0]
-            scale = np.sqrt(np.mean(F0 ** 2))
-            out = []
+            R0 = generate.aa_filter(F0, 1 / dt, fc, M)
+            scale, rscale = np.sqrt(np.mean(F0 ** 2)), np.sqrt(np.mean(R0 ** 2))
+            out, rec = [], []
             for s in (1.0, 1e-2, 1e-4, 1e-6, 1e-8):
                 pc = pb.copy()
                 generate.apply_effect(pc, "fluid_compressibility", dict(K_liq_ref=1e9, alpha_air_ref=0.01, n_air=1.2), s)
                 F1 = physics.simulate(x, v, a, icmd, dt, pc)[0]
-                out.append(float(np.sqrt(np.mean((F1 - F0) ** 2)) / scale))
+                out.append(float(np.sqrt(np.mean((F1 - F0)[away] ** 2)) / scale))
+                rec.append(float(np.sqrt(np.mean((generate.aa_filter(F1, 1 / dt, fc, M) - R0) ** 2)) / rscale))
             mono = all(out[i + 1] <= out[i] * 1.01 for i in range(len(out) - 1))
             check(f"compressible -> incompressible as K -> inf ({geo['name']}, {fl['law']}, gas {'on' if gas else 'off'})",
-                  mono and out[-1] < 2e-3,
-                  "RMS diff / RMS force at K_eff x1, x1e2, x1e4, x1e6, x1e8: " + ", ".join(f"{o:.1e}" for o in out))
+                  mono and out[-1] < 2e-3 and rec[-1] < 0.5 * 0.005,
+                  "RMS diff / RMS force at K_eff x1, x1e2, x1e4, x1e6, x1e8, away from reversals: "
+                  + ", ".join(f"{o:.1e}" for o in out)
+                  + f"; on the record, reversals included, at x1e8: {rec[-1]:.1e} (limit 2.5e-3)")
 
 
 def blocked_stiffness():
@@ -168,22 +190,35 @@ def energy():
 
 
 def effect_sizes(nseeds):
-    ok_n, tot, worst, t_total, rows = 0, 0, [], 0.0, []
+    """The sizing (`generate.size_effect`) must reach its target wherever its scale bounds
+    (`generate.LIMITS`: a field lag of at least 1 ms, a liquid no stiffer than 2e10 Pa) allow
+    it. Where a bound binds, the effect is larger than its target (at the lower bound; smaller
+    at the upper), the meta records the size reached (`u_achieved`) and the study scores that."""
+    ok_n, tot, worst, t_total, rows, bound, wrong_bound = 0, 0, [], 0.0, [], [], []
     for seed in range(nseeds):
         t0 = time.process_time()
         meta, _ = generate.scenario(seed)
         t_total += time.process_time() - t0
         for e in meta["effects"]:
-            tot += 1
             rel = e["u_achieved"] / e["u_target"] - 1
+            row = (seed, e["effect"], round(e["u_target"], 2), round(e["u_achieved"], 2))
+            lo, hi = generate.LIMITS.get(e["effect"], (None, None))
+            if abs(rel) > 0.2 and e["scale"] in (lo, hi):
+                bound.append(row)
+                if (e["scale"] == lo) != (rel > 0):
+                    wrong_bound.append(row)
+                continue
+            tot += 1
             if abs(rel) <= 0.2:
                 ok_n += 1
             else:
-                worst.append((seed, e["effect"], round(e["u_target"], 2), round(e["u_achieved"], 2),
-                              e["parameters"].get("effective_tau_s")))
+                worst.append(row)
             rows.append(abs(rel))
-    check(f"effect size within +-20 % of target (seeds 0..{nseeds - 1})", ok_n >= 0.9 * tot,
-          f"{ok_n}/{tot} effects, median |error| {100 * np.median(rows):.1f} %; outside: {worst}")
+    check(f"effect size within +-20 % of target where the sizing's bounds allow it (seeds 0..{nseeds - 1})",
+          ok_n >= 0.9 * tot and not wrong_bound,
+          f"{ok_n}/{tot} effects, median |error| {100 * np.median(rows):.1f} %; outside: {worst}; "
+          f"{len(bound)} at a scale bound (seed, effect, target, reached): {bound}"
+          + (f"; on the wrong side of their bound: {wrong_bound}" if wrong_bound else ""))
     print(f"generation CPU time: {t_total / nseeds:.2f} s per scenario (mean over {nseeds})")
 
 
