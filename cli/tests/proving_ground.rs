@@ -13,6 +13,29 @@ use mrtwin_tests::{read_json, repo_root, run, run_python, succeeded, TempDir};
 const RUN_FILE: &str =
     "import runpy, sys; sys.argv = sys.argv[1:]; runpy.run_path(sys.argv[0], run_name='__main__')";
 
+/// The simulator's own physics checks (`check_generator.py --quick`): slit-flow limits and
+/// closed forms, compressible chambers tending to the incompressible force as K → ∞ (the
+/// reversal step's sampling stated on the record), the blocked gap's stiffness K A1²/V1,
+/// positive dissipation, a conservative gas spring, fine-grid convergence, the null twin,
+/// and effect sizes on target wherever the sizing's bounds allow. The proving ground is
+/// only as independent as it is right.
+#[test]
+fn the_independent_simulators_physics_checks_pass() {
+    let script = repo_root().join("scripts/proving_ground/check_generator.py");
+    let stdout = run_python(
+        RUN_FILE,
+        &[script.to_str().unwrap(), "--quick"],
+        Duration::from_secs(600),
+    );
+    eprintln!("{stdout}");
+    let checks = stdout.lines().filter(|l| l.starts_with("[ok]")).count();
+    assert!(
+        !stdout.contains("[FAIL]") && stdout.contains("all checks passed"),
+        "a physics check of the simulator failed:\n{stdout}"
+    );
+    assert!(checks >= 24, "only {checks} checks ran:\n{stdout}");
+}
+
 #[test]
 fn quick_slice_of_the_independent_proving_ground() {
     let dir = TempDir::new("pg");

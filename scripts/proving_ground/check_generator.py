@@ -2,7 +2,10 @@
 """Physical checks of the proving-ground simulator. Prints each check and exits non-zero
 if one fails.
 
-    .venv/bin/python scripts/proving_ground/check_generator.py [--seeds 40]
+    .venv/bin/python scripts/proving_ground/check_generator.py [--seeds 40] [--quick]
+
+`--quick` (the test suite's slice, `cli/tests/proving_ground.rs`): every check, on one
+rig per limit, one fine-grid seed and the effect sizes of seeds 0-5.
 """
 import argparse
 import math
@@ -100,7 +103,7 @@ def reversal_steps(v):
     return mask
 
 
-def compressible_limit():
+def compressible_limit(seeds=(3, 4, 5)):
     """K -> inf must give the incompressible force. The two branches sample the step in
     which the rod reverses differently: the incompressible one writes the step's mean force
     (`physics.reversal_split`), the compressible one the chamber pressure at the end of its
@@ -110,7 +113,7 @@ def compressible_limit():
     anti-alias filter, x16 decimation) against the smallest force noise the generator
     draws, 0.5 % of the RMS force (`draw_measurement`)."""
     M, fc = 16, 150.0
-    for seed in (3, 4, 5):
+    for seed in seeds:
         geo, fl, p, t, x, v, a, icmd, dt = sine_rig(seed)
         away = ~reversal_steps(v)
         for gas in (0, 1):
@@ -261,14 +264,15 @@ def null_twin(seed=56):
 def main():
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--seeds", type=int, default=40)
+    ap.add_argument("--quick", action="store_true", help="the test suite's slice")
     args = ap.parse_args()
     slit_flow()
-    compressible_limit()
+    compressible_limit((4,) if args.quick else (3, 4, 5))
     blocked_stiffness()
     energy()
-    fine_grid_convergence()
+    fine_grid_convergence((57,) if args.quick else (20, 41, 57))
     null_twin()
-    effect_sizes(args.seeds)
+    effect_sizes(6 if args.quick else args.seeds)
     print(f"{len(FAILS)} failed" if FAILS else "all checks passed")
     sys.exit(1 if FAILS else 0)
 
