@@ -64,9 +64,8 @@ impl Linearisation {
         let lay = &fit.layout;
         let p = lay.len();
         let jac = evaluate(d, lay, &fit.theta, true).jac;
-        let (mut jtj, mut jtr) = crate::model::normal_equations(d, &fit.force, &jac, p);
-        crate::model::add_knot_penalty(d, lay, &fit.theta, &mut jtj, &mut jtr);
-        crate::model::hold_parameters(lay, &mut jtj, &mut jtr);
+        let (jtj, _) =
+            crate::model::penalised_normal_equations(d, lay, &fit.theta, &fit.force, &jac);
         // A pseudo-inverse of the column-scaled matrix: a knot the record leaves
         // unidentified (c of 10⁹ N s/m beside F_y of 10² N) makes it too ill-conditioned to
         // invert as it stands, and directions it cannot resolve are dropped, not amplified.

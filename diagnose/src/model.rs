@@ -886,7 +886,7 @@ pub fn knot_penalty(d: &Prepared, lay: &Layout, theta: &[f64]) -> f64 {
 }
 
 /// Adds the penalty's curvature and gradient to the normal equations `(JᵀWJ, JᵀWr)`.
-pub(crate) fn add_knot_penalty(
+fn add_knot_penalty(
     d: &Prepared,
     lay: &Layout,
     theta: &[f64],
@@ -1149,14 +1149,12 @@ pub fn fit_with(
     // run, an accepted one no second run.
     type State = (Vec<f64>, Evaluation, Vec<f64>);
     let linearize = |(theta, ev, grid_jac): &State| {
-        let (mut jtj, mut jtr) = if ev.jac.is_empty() {
-            normal_equations(d, &ev.force, &filter_jacobian(d, lay, grid_jac), p)
+        Some(if ev.jac.is_empty() {
+            let jac = filter_jacobian(d, lay, grid_jac);
+            penalised_normal_equations(d, lay, theta, &ev.force, &jac)
         } else {
-            normal_equations(d, &ev.force, &ev.jac, p)
-        };
-        add_knot_penalty(d, lay, theta, &mut jtj, &mut jtr);
-        hold_parameters(lay, &mut jtj, &mut jtr);
-        Some((jtj, jtr))
+            penalised_normal_equations(d, lay, theta, &ev.force, &ev.jac)
+        })
     };
     let trial = |(theta, _, _): &State, step: &nalgebra::DVector<f64>| {
         let mut trial: Vec<f64> = theta.iter().zip(step.iter()).map(|(t, s)| t + s).collect();
@@ -1198,9 +1196,7 @@ pub fn fit_with(
     let rho1 = crate::stats::autocorr(&r, 1);
     let m = r.len();
     let n_eff = crate::stats::effective_n(m, rho1);
-    let (mut jtj, mut jtr) = normal_equations(d, &ev.force, &ev.jac, p);
-    add_knot_penalty(d, lay, &theta, &mut jtj, &mut jtr);
-    hold_parameters(lay, &mut jtj, &mut jtr);
+    let (mut jtj, _) = penalised_normal_equations(d, lay, &theta, &ev.force, &ev.jac);
     // A parameter the data do not move (a leak at zero on noise-free velocity) has a zero
     // column: decouple it so the others keep their errors.
     for q in 0..p {
@@ -1230,9 +1226,26 @@ pub fn fit_with(
     }
 }
 
+/// The normal equations `(JᵀWJ, JᵀWr)` a fit of `lay` at `theta` solves: over the fitting
+/// samples, with the knots' smoothness penalty ([`knot_penalty`]) and the held parameters
+/// held. Also the final model's linearisation for the detection limits
+/// ([`crate::limits`]).
+pub(crate) fn penalised_normal_equations(
+    d: &Prepared,
+    lay: &Layout,
+    theta: &[f64],
+    force: &[f64],
+    jac: &[f64],
+) -> (nalgebra::DMatrix<f64>, nalgebra::DVector<f64>) {
+    let (mut jtj, mut jtr) = normal_equations(d, force, jac, lay.len());
+    add_knot_penalty(d, lay, theta, &mut jtj, &mut jtr);
+    hold_parameters(lay, &mut jtj, &mut jtr);
+    (jtj, jtr)
+}
+
 /// Zeroes the rows and columns of the held parameters ([`Layout::held_parameters`]) in
 /// the normal equations, so a step leaves them where they stand.
-pub(crate) fn hold_parameters(
+fn hold_parameters(
     lay: &Layout,
     jtj: &mut nalgebra::DMatrix<f64>,
     jtr: &mut nalgebra::DVector<f64>,
@@ -1244,7 +1257,7 @@ pub(crate) fn hold_parameters(
     }
 }
 
-pub(crate) fn normal_equations(
+fn normal_equations(
     d: &Prepared,
     force: &[f64],
     jac: &[f64],

@@ -5,6 +5,7 @@
 //! The limit comes from the final model's linearisation; the decisions from the whole
 //! nonlinear selection with its bootstrap, so the two can disagree.
 
+use diagnose::report::DetectionLimit;
 use diagnose::study::{generate, Scenario, YieldLaw};
 use diagnose::{diagnose, Diagnosis, Options};
 
@@ -21,14 +22,19 @@ fn run(sig: &diagnose::Signals) -> Diagnosis {
     diagnose(sig, "limits", &Options::default()).expect("generated data are valid")
 }
 
-/// The stated limit of `effect` (its first shape) in SI units, and its force RMS \[N\].
-fn limit(dg: &Diagnosis, effect: &str, to_si: f64) -> (f64, f64) {
-    let l = dg
-        .report
+/// The detection-limit row of `effect` that states a limit (`with_limit`) or none (a
+/// friction's step without presliding).
+fn row<'a>(dg: &'a Diagnosis, effect: &str, with_limit: bool) -> &'a DetectionLimit {
+    dg.report
         .detection_limits
         .iter()
-        .find(|l| l.effect == effect)
-        .unwrap_or_else(|| panic!("no limit for {effect}: {:?}", dg.report.detection_limits));
+        .find(|l| l.effect == effect && l.limit.is_some() == with_limit)
+        .unwrap_or_else(|| panic!("no such row for {effect}: {:?}", dg.report.detection_limits))
+}
+
+/// The stated limit of `effect` in SI units, and its force RMS \[N\].
+fn limit(dg: &Diagnosis, effect: &str, to_si: f64) -> (f64, f64) {
+    let l = row(dg, effect, true);
     (
         l.limit.expect("separable on this record") * to_si,
         l.effect_rms_n.expect("separable"),
@@ -89,22 +95,12 @@ fn effects_above_their_stated_limit_are_found_and_below_it_are_not() {
 #[test]
 fn a_friction_step_without_presliding_is_stated_as_the_fluids_yield() {
     let base = run(&null());
-    let step = base
-        .report
-        .detection_limits
-        .iter()
-        .find(|l| l.effect == "seal_friction" && l.limit.is_none())
-        .expect("the step's row");
+    let step = row(&base, "seal_friction", false);
     // A current-independent step is a common offset of every knot's yield force.
     assert!(step.absorbed_share > 0.95, "{step:?}");
     assert!(step.rule.contains("never reported"), "{step:?}");
     // The Dahl friction's presliding leaves more for the record to see.
-    let dahl = base
-        .report
-        .detection_limits
-        .iter()
-        .find(|l| l.effect == "seal_friction" && l.limit.is_some())
-        .expect("the presliding row");
+    let dahl = row(&base, "seal_friction", true);
     assert!(
         dahl.absorbed_share < step.absorbed_share,
         "{dahl:?} {step:?}"

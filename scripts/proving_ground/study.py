@@ -61,6 +61,12 @@ def _rmse(block):
     return None
 
 
+def file_sha256(path):
+    """sha256 of a file's bytes (hex)."""
+    with open(path, "rb") as f:
+        return hashlib.sha256(f.read()).hexdigest()
+
+
 def run_one(task):
     """Worker: generate seed's scenario (cached in out dir) and diagnose it per selector."""
     seed, out, binary, selectors, timeout, use_flag, bin_sha, resume = task
@@ -79,8 +85,7 @@ def run_one(task):
         meta = json.load(f)
     # The scenario file's hash: a study on another machine can tell whether its files or
     # only its decisions differ (numba and numpy dispatch on the CPU; glibc's libm too).
-    with open(csv, "rb") as f:
-        csv_sha = hashlib.sha256(f.read()).hexdigest()
+    csv_sha = file_sha256(csv)
     res = []
     for sel in selectors:
         js = os.path.join(out, f"seed{seed:04d}.{sel}.json")
@@ -306,8 +311,7 @@ def main():
                 print(f"selector {s} rejected by the binary: {supported[s][1]}", file=sys.stderr)
         use_flag, label_of = True, {s: s for s in run_sels}
 
-    with open(binary, "rb") as f:
-        bin_sha = hashlib.sha256(f.read()).hexdigest()
+    bin_sha = file_sha256(binary)
     tasks = [(s, out, binary, run_sels, args.timeout, use_flag, bin_sha, args.resume) for s in seeds]
     t0 = time.time()
     records = []
