@@ -354,7 +354,8 @@ def main():
     same, recorded = scenario_hashes_matching(records)
     if recorded:
         head.append(f"Scenario files: {same} of {recorded} identical to the hashes recorded in "
-                    "`scripts/proving_ground/scenario_sha256.txt` (session 67, OpenBLAS pinned); a "
+                    "`scripts/proving_ground/scenario_sha256.txt` (seeds 0–299 session 67, OpenBLAS pinned; "
+                    "the validation seeds 300–599 session 69); a "
                     "difference is the generator's numerics on this machine, not diagnose.\n")
     if n_reused:
         head.append(f"{n_reused} of {n_runs} diagnose runs were reused from earlier runs of the same binary "
