@@ -16,7 +16,9 @@ effect's force RMS at the limit, for diagnose's own shape of the effect).
   with nothing hidden): the limit is read off the null twin, so found effects can be
   scored too. Each hidden effect is *predicted* found when its force RMS exceeds the
   twin's limit, and the prediction is set against what the study's diagnosis found (a
-  finding, or a member of an undecided group).
+  finding, or a member of an undecided group). Also counted: the records whose every
+  hidden effect is above its twin's limit (the nulls with them), and on how many of them
+  diagnose names the exact set.
 
 A seal friction is read against the limit of the shape the generator gave it: a
 Stribeck map has no presliding, so its row is the step's (never reported); Dahl and
@@ -74,11 +76,21 @@ def main():
     res = load(os.path.join(a.dir, "results.json"))
     missed = collections.defaultdict(list)
     table = collections.defaultdict(collections.Counter)
+    # Records whose every hidden effect is above its null twin's limit (nulls too): how
+    # many there are, and on how many diagnose names the exact set (study.py's reading:
+    # the findings are the hidden set and no group is undecided).
+    reachable = collections.Counter()
     for rec in res["records"]:
         seed = rec["seed"]
         run = next((r for r in rec["runs"] if r["selector"] == a.selector), None)
-        if run is None or run["rc"] != 0 or not run["hidden"]:
+        if run is None or run["rc"] != 0:
             continue
+        exact = set(run["findings"]) == set(run["hidden"]) and not run.get("undecided")
+        if not run["hidden"]:
+            reachable["records"] += 1
+            reachable["exact"] += exact
+            continue
+        all_above = True
         meta = load(os.path.join(a.dir, "seed%04d.meta.json" % seed))
         diag = load(os.path.join(a.dir, "seed%04d.%s.json" % (seed, a.selector)))
         twin = None
@@ -93,9 +105,13 @@ def main():
                 missed[e].append((seed, q))
             if twin is not None:
                 q = ratio(me, limit_row(twin, e, me))
+                all_above = all_above and q is not None and q > 1.0
                 if q is None:
                     continue
                 table[e][("above" if q > 1.0 else "below", "found" if hit else "missed")] += 1
+        if twin is not None and all_above:
+            reachable["records"] += 1
+            reachable["exact"] += exact
 
     print("Missed hidden effects against the limit their own record states "
           "(hidden force RMS / the limit's):\n")
@@ -133,6 +149,8 @@ def main():
         right = allc[("above", "found")] + allc[("below", "missed")]
         print(f"| all | {allc[('above', 'found')]} | {allc[('above', 'missed')]} | "
               f"{allc[('below', 'found')]} | {allc[('below', 'missed')]} | {right}/{n} |")
+        print(f"\nRecords with every hidden effect above its null twin's limit (nulls included): "
+              f"{reachable['records']}; the exact set on {reachable['exact']} of them.")
 
 
 if __name__ == "__main__":
