@@ -309,19 +309,20 @@ fn a_compliance_whose_gain_is_sharp_passes_the_structure_rule() {
     );
 }
 
-/// A gas spring that halves most held-out blocks while three blocks the baseline misfits
-/// (a bi-viscous fluid under a continuously varying current, 49–99 N against 21 N
-/// elsewhere) get slightly worse (proving-ground seed 107: 3.6 N/mm of polytropic gas at
-/// x = 0, 1 kHz, 16 s of multi-sine strokes). Pooled, those three blocks outweigh the rest
-/// and the held-out RMS rises, so the gas was rejected and nothing was reported. The typical
-/// block's gain counts too when no block is hurt more than it gains
-/// (diagnose::select, `broad_gain`); from session 53 to 58 that found the gas. From session
-/// 59 (the weights count the velocity error through the anti-alias filter) the baseline's
-/// most flagged region was the compression strokes, where the gas removes no structure, and
-/// it failed the structure rule. Since session 62 the structure removed is read in the
-/// typical block too, under the same proviso: the gas is found again, and nothing else.
+/// A gas spring judged against the baseline's optimum, not a stop short of it
+/// (proving-ground seed 107: 3.6 N/mm of polytropic gas at x = 0, a bi-viscous fluid under
+/// a continuously varying current, 1 kHz, 16 s of multi-sine strokes). Its baseline stops
+/// 133 noise units of fitting SSE short of its own optimum: every candidate of round 1
+/// shows it (a field lag fitted to no lag took the held-out RMS 45.5 → 26.3 N). Fitted from
+/// the stop, the gas halved most held-out blocks and made three blocks the stopped baseline
+/// misfits (49–99 N) worse, so pooled the held-out RMS rose and only the typical block's
+/// reading (diagnose::select, `broad_gain`, sessions 53–69) found it. Since session 70 the
+/// candidates are fitted again from the baseline's better parameters
+/// (`judged_from_current_optimum`): the gas takes the pooled held-out RMS down by half, and
+/// nothing else is found. The typical-block reading keeps its unit test
+/// (`one_extrapolated_block_neither_hides_a_broad_gain_nor_passes_as_one`).
 #[test]
-fn a_gain_in_most_held_out_blocks_is_read_though_pooled_it_is_outweighed() {
+fn a_gas_spring_fitted_from_the_baselines_optimum_predicts_the_held_out_blocks() {
     let (m, d) = generate_and_diagnose(107);
     assert_eq!(hidden_effects(&m), ["gas_spring"], "the scenario changed");
     let found = found_effects(&d);
@@ -335,12 +336,15 @@ fn a_gain_in_most_held_out_blocks_is_read_though_pooled_it_is_outweighed() {
     let e = &gas["evidence"];
     eprintln!("{e}");
     let num = |k: &str| e[k].as_f64().unwrap_or_else(|| panic!("{k}: {e}"));
-    // The pooled held-out alone rejects it ...
-    assert!(
-        num("holdout_rmse_after_N") >= num("holdout_rmse_before_N"),
-        "pooled held-out fell: the typical block is not what is read here ({e})"
-    );
-    // ... while the typical block's RMS falls by a third and no block loses more.
+    // The baseline stopped short of its optimum, by far more than one noise unit ...
+    let shortfall = e["calibration"]["current_shortfall"]
+        .as_f64()
+        .unwrap_or_else(|| panic!("current_shortfall: {e}"));
+    assert!(shortfall > 50.0, "shortfall {shortfall}");
+    // ... and from its better parameters the gas predicts the held-out blocks pooled, and
+    // in the typical block, with no block hurt more than the typical block gains.
+    let (b, a) = (num("holdout_rmse_before_N"), num("holdout_rmse_after_N"));
+    assert!(a < 0.7 * b, "pooled held-out {b:.2} -> {a:.2} N");
     let (tb, ta) = (
         num("holdout_typical_block_rmse_before_N"),
         num("holdout_typical_block_rmse_after_N"),
@@ -348,11 +352,6 @@ fn a_gain_in_most_held_out_blocks_is_read_though_pooled_it_is_outweighed() {
     assert!(ta < 0.8 * tb, "typical block {tb:.2} -> {ta:.2} N");
     assert!(
         num("holdout_worst_block_ms_ratio") <= (tb / ta).powi(2),
-        "{e}"
-    );
-    // The structure it removes is read in the typical block too: pooled, it removes none.
-    assert_eq!(
-        e["structure_region"], "typical held-out block's mean square above the force noise",
         "{e}"
     );
     assert!(num("structure_drop") >= 0.2, "{e}");

@@ -97,6 +97,10 @@ pub struct CalibratedEvidence {
     pub alpha: f64,
     /// Replicates used (0 when screened out).
     pub replicates: usize,
+    /// What the current model's own parameters, where the best of the round's candidate
+    /// refits left them, gain on it in the statistic's units (the current model stopped
+    /// short of its optimum); already taken off `statistic`.
+    pub current_shortfall: f64,
 }
 
 impl CalibratedEvidence {
@@ -108,9 +112,14 @@ impl CalibratedEvidence {
 
 /// T_e of a candidate fit against the current one.
 pub fn statistic(current: &Fit, cand: &Fit) -> f64 {
+    sse_statistic(current, cand.train_sse)
+}
+
+/// T of any fitting-sample SSE against the current model's.
+pub fn sse_statistic(current: &Fit, sse: f64) -> f64 {
     let dof = (current.train_n as f64 - current.layout.len() as f64).max(1.0);
     let s2 = (current.train_sse / dof).max(1e-300);
-    ((current.train_sse - cand.train_sse) / s2).max(0.0)
+    ((current.train_sse - sse) / s2).max(0.0)
 }
 
 /// Block length of the wild bootstrap: twice the lag at which the residual's
@@ -256,6 +265,7 @@ pub fn judge_null(t: f64, null: &[f64], dp: usize, alpha: f64) -> CalibratedEvid
         replicate_exceedance: Some(exceed),
         alpha,
         replicates: b,
+        current_shortfall: 0.0,
     }
 }
 
@@ -271,6 +281,7 @@ pub fn screened(t: f64, dp: usize, cal: &Calibration, alpha: f64) -> CalibratedE
         replicate_exceedance: None,
         alpha,
         replicates: 0,
+        current_shortfall: 0.0,
     }
 }
 

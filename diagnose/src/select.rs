@@ -1113,9 +1113,12 @@ fn round_verdicts(
     let cal = &opts.calibration;
     let alpha = cal.alpha_per_test(pairs.len());
     let dp = |j: &Judged| j.fit.layout.len() - current.layout.len();
+    let (judged, optimum) =
+        judged_from_current_optimum(d, reg, current, judged, flags, &opts.thresholds);
+    let shortfall = calibrate::statistic(current, &optimum);
     let stat: Vec<f64> = judged
         .iter()
-        .map(|j| calibrate::statistic(current, &j.fit))
+        .map(|j| calibrate::statistic(&optimum, &j.fit))
         .collect();
     // A held-out gain of at least `min_holdout_gain_noise` σ_F² in mean square, a physical
     // parameter, and systematic held-out structure removed first; then the statistic
@@ -1183,12 +1186,15 @@ fn round_verdicts(
         .into_iter()
         .zip(stat)
         .map(|(j, t)| {
-            let c = match boot.iter().position(|c| *c == j.candidate()) {
-                Some(q) => {
-                    let col: Vec<f64> = nulls.iter().map(|row| row[q]).collect();
-                    calibrate::judge_null(t, &col, dp(&j), alpha)
+            let c = CalibratedEvidence {
+                current_shortfall: shortfall,
+                ..match boot.iter().position(|c| *c == j.candidate()) {
+                    Some(q) => {
+                        let col: Vec<f64> = nulls.iter().map(|row| row[q]).collect();
+                        calibrate::judge_null(t, &col, dp(&j), alpha)
+                    }
+                    None => calibrate::screened(t, dp(&j), cal, alpha),
                 }
-                None => calibrate::screened(t, dp(&j), cal, alpha),
             };
             let pass = eligible(&j) && !j.unresolved_seal && c.passes() && c.replicates > 0;
             let shape_pass = shape_eligible(&j) && c.passes() && c.replicates > 0;
@@ -1202,6 +1208,84 @@ fn round_verdicts(
         })
         .collect();
     pairs_where_alone_fails(verdicts)
+}
+
+/// Least shortfall of the current model, in the statistic's noise units, for the round's
+/// candidates to be fitted again from its better parameters ([`judged_from_current_optimum`]).
+const SHORT_OF_OPTIMUM: f64 = 1.0;
+
+/// The best parameters of the current model's layout that the round's candidate refits
+/// show: each candidate's fit with its effect taken out, evaluated; with its fitting SSE,
+/// when one is below the current model's.
+fn best_projection(d: &Prepared, current: &Fit, judged: &[Judged]) -> Option<(f64, Vec<f64>)> {
+    judged
+        .iter()
+        .map(|j| {
+            let theta = extend(&j.fit.layout, &j.fit.theta, &current.layout, &[]);
+            let force = evaluate(d, &current.layout, &theta, false).force;
+            (crate::model::sse_train(d, &force), theta)
+        })
+        .filter(|(sse, _)| *sse < current.train_sse)
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+}
+
+/// The round's candidates judged against the current model's optimum, not a local stop of
+/// it: the candidates (refitted when needed) and the current model with the least fitting
+/// SSE its layout is seen to reach, against which their statistics are taken.
+///
+/// Levenberg–Marquardt from another start, or with one more column, can leave the current
+/// model short of its own optimum; every candidate then gains what the model without it
+/// could have had, and the bootstrap null, whose replicates are simulated from the model
+/// and refitted from its optimum, does not carry that gain (proving-ground validation null
+/// 520: a chamber compliance fitted to zero lowered the SSE as much as every other
+/// candidate, T ≈ 82, and an inertia was accepted on it). Each candidate's fit with its
+/// effect taken out shows how far: the least of their SSEs is the current model's.
+///
+/// When that shortfall exceeds [`SHORT_OF_OPTIMUM`] noise units, each candidate is fitted
+/// again from the current model's better parameters and the better of its two fits kept (a
+/// true effect fitted from the stop can gain less than the stop's shortfall: validation
+/// seed 471, a thermal softening at T = 186 beside a shortfall of 284). The current model's
+/// parameters, held-out reference and flags are left as they are (refitting it moved other
+/// decisions on the development seeds; docs/diagnose.md §5).
+fn judged_from_current_optimum(
+    d: &Prepared,
+    reg: &Regions,
+    current: &Fit,
+    judged: Vec<Judged>,
+    flags: &[usize],
+    th: &AcceptanceThresholds,
+) -> (Vec<Judged>, Fit) {
+    let with_sse = |sse: f64| Fit {
+        train_sse: sse,
+        ..current.clone()
+    };
+    let Some((sse, theta)) = best_projection(d, current, &judged) else {
+        return (judged, current.clone());
+    };
+    if calibrate::statistic(current, &with_sse(sse)) <= SHORT_OF_OPTIMUM {
+        return (judged, with_sse(sse));
+    }
+    let force = evaluate(d, &current.layout, &theta, false).force;
+    let better = Fit {
+        train_sse: sse,
+        force,
+        theta,
+        ..current.clone()
+    };
+    let reference = Reference::new(d, reg, current);
+    let refits = numerics::parallel::map_indexed(judged.len(), judged.len(), |k| {
+        let (e, partner) = judged[k].candidate();
+        let fit = fit_candidate_pair(d, &better, (e, partner), 40, FitDetail::Full);
+        (fit.train_sse < judged[k].fit.train_sse)
+            .then(|| judge(d, reg, &reference, flags, fit, e, partner, th))
+    });
+    let judged: Vec<Judged> = judged
+        .into_iter()
+        .zip(refits)
+        .map(|(j, r)| r.unwrap_or(j))
+        .collect();
+    let least = best_projection(d, current, &judged).map_or(sse, |(s, _)| s.min(sse));
+    (judged, with_sse(least))
 }
 
 /// The first version's rules: a candidate passes when all four rules hold, and ranks by
@@ -2171,6 +2255,101 @@ mod tests {
         // UTFSM's compressibilities (0.15–0.64 mm/kN) count; seed 34's 2.6e-5 mm/kN does not.
         assert!(compliance_resolved(&d, 0.15e-6));
         assert!(!compliance_resolved(&d, 2.6e-11));
+    }
+
+    /// 2 Hz strokes of ±8 mm at 1 kHz, a smoothed Bingham force with 20 N of white noise,
+    /// plus `mass` times the piston's acceleration.
+    fn stroke_record(seed: u64, mass: f64) -> Prepared {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        let noise = Normal::new(0.0, 20.0).unwrap();
+        let w = 2.0 * std::f64::consts::PI * 2.0;
+        let mut s = Signals::default();
+        for k in 0..4000 {
+            let t = k as f64 * 1e-3;
+            let v = 0.008 * w * (w * t).cos();
+            let a = -0.008 * w * w * (w * t).sin();
+            s.time_s.push(t);
+            s.displacement_m.push(0.008 * (w * t).sin());
+            s.velocity_m_s.push(v);
+            s.current_a.push(1.0);
+            s.force_n
+                .push(900.0 * (v / 0.01).tanh() + 3000.0 * v + mass * a + noise.sample(&mut rng));
+        }
+        prepare(&s).expect("valid record")
+    }
+
+    /// Every candidate's fit and its statistic with the current model's shortfall taken off,
+    /// the current model being `current`.
+    fn corrected_statistics(d: &Prepared, current: &Fit) -> (Vec<(Effect, f64)>, f64) {
+        let reg = regions(d);
+        let th = AcceptanceThresholds::default();
+        let flags = flagged(d, &reg, &residual(d, &current.force), &th);
+        let judged = fit_and_judge(d, &reg, current, &Effect::ALL, &[], &flags, &th);
+        let (judged, optimum) = judged_from_current_optimum(d, &reg, current, judged, &flags, &th);
+        let stat = judged
+            .iter()
+            .map(|j| (j.effect, calibrate::statistic(&optimum, &j.fit)))
+            .collect();
+        (stat, calibrate::statistic(current, &optimum))
+    }
+
+    #[test]
+    fn candidates_are_judged_against_the_current_models_optimum_not_a_stop_short_of_it() {
+        let null = stroke_record(5, 0.0);
+        let base = crate::model::fit_baseline(&null);
+        // At the optimum no candidate's refit shows a shortfall, and none gains much.
+        let (at_optimum, shortfall) = corrected_statistics(&null, &base);
+        assert!(shortfall <= SHORT_OF_OPTIMUM, "shortfall {shortfall}");
+        // The same layout stopped short: yield forces 10 % too high, not refitted.
+        let short = crate::model::fit_limited(&null, &base.layout, &theta_scaled(&base, 1.1), 0);
+        let gap = calibrate::statistic(&short, &base);
+        assert!(gap > 50.0, "the stop is {gap} noise units short");
+        let raw_best = Effect::ALL
+            .iter()
+            .map(|e| calibrate::statistic(&short, &fit_candidate(&null, &short, *e)))
+            .fold(0.0, f64::max);
+        assert!(
+            raw_best > 0.5 * gap,
+            "uncorrected, a candidate gains {raw_best}"
+        );
+        let (stat, shortfall) = corrected_statistics(&null, &short);
+        assert!(shortfall > 0.5 * gap, "shortfall {shortfall} of {gap}");
+        for ((e, t), (_, t0)) in stat.iter().zip(&at_optimum) {
+            // Within a few noise units of what the candidate gains at the optimum.
+            assert!(
+                *t < t0.max(0.0) + 5.0,
+                "{e:?}: {t} from the stop, {t0} at the optimum"
+            );
+        }
+        // A true inertia (100 kg: 126 N, 6 σ, at the stroke ends) gains from the stop about
+        // what it gains at the optimum.
+        let heavy = stroke_record(5, 100.0);
+        let base = crate::model::fit_baseline(&heavy);
+        let short = crate::model::fit_limited(&heavy, &base.layout, &theta_scaled(&base, 1.1), 0);
+        let inertia = |stat: &[(Effect, f64)]| {
+            stat.iter()
+                .find(|(e, _)| *e == Effect::FluidInertia)
+                .expect("an inertia candidate")
+                .1
+        };
+        let from_optimum = inertia(&corrected_statistics(&heavy, &base).0);
+        let from_stop = inertia(&corrected_statistics(&heavy, &short).0);
+        assert!(
+            from_optimum > 1000.0,
+            "inertia at the optimum {from_optimum}"
+        );
+        assert!(
+            (from_stop / from_optimum - 1.0).abs() < 0.1,
+            "inertia {from_stop} from the stop, {from_optimum} from the optimum"
+        );
+    }
+
+    fn theta_scaled(fit: &Fit, yield_factor: f64) -> Vec<f64> {
+        let mut theta = fit.theta.clone();
+        for fy in &mut theta[..fit.layout.nk] {
+            *fy *= yield_factor;
+        }
+        theta
     }
 
     fn block(rms: f64) -> HeldOutBlock {

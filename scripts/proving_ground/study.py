@@ -355,7 +355,7 @@ def main():
     if recorded:
         head.append(f"Scenario files: {same} of {recorded} identical to the hashes recorded in "
                     "`scripts/proving_ground/scenario_sha256.txt` (seeds 0–299 session 67, OpenBLAS pinned; "
-                    "the validation seeds 300–599 session 69); a "
+                    "the validation seeds 300–599 session 69, the fresh seeds 600–899 session 70); a "
                     "difference is the generator's numerics on this machine, not diagnose.\n")
     if n_reused:
         head.append(f"{n_reused} of {n_runs} diagnose runs were reused from earlier runs of the same binary "
