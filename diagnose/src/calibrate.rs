@@ -97,9 +97,10 @@ pub struct CalibratedEvidence {
     pub alpha: f64,
     /// Replicates used (0 when screened out).
     pub replicates: usize,
-    /// What the current model's own parameters, where the best of the round's candidate
-    /// refits left them, gain on it in the statistic's units (the current model stopped
-    /// short of its optimum); already taken off `statistic`.
+    /// How far the current model stopped short of its own optimum, in its noise units: what
+    /// its own parameters, where the best of the round's candidate refits left them, gain
+    /// on it. `statistic` is taken against that optimum
+    /// (`select::judged_from_current_optimum`).
     pub current_shortfall: f64,
 }
 

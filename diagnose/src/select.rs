@@ -2278,8 +2278,8 @@ mod tests {
         prepare(&s).expect("valid record")
     }
 
-    /// Every candidate's fit and its statistic with the current model's shortfall taken off,
-    /// the current model being `current`.
+    /// Every candidate's statistic against the current model's optimum (in the optimum's
+    /// noise units), and how far short of it `current` stopped (in `current`'s).
     fn corrected_statistics(d: &Prepared, current: &Fit) -> (Vec<(Effect, f64)>, f64) {
         let reg = regions(d);
         let th = AcceptanceThresholds::default();
