@@ -113,14 +113,9 @@ impl CalibratedEvidence {
 
 /// T_e of a candidate fit against the current one.
 pub fn statistic(current: &Fit, cand: &Fit) -> f64 {
-    sse_statistic(current, cand.train_sse)
-}
-
-/// T of any fitting-sample SSE against the current model's.
-pub fn sse_statistic(current: &Fit, sse: f64) -> f64 {
     let dof = (current.train_n as f64 - current.layout.len() as f64).max(1.0);
     let s2 = (current.train_sse / dof).max(1e-300);
-    ((current.train_sse - sse) / s2).max(0.0)
+    ((current.train_sse - cand.train_sse) / s2).max(0.0)
 }
 
 /// Block length of the wild bootstrap: twice the lag at which the residual's

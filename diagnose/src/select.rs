@@ -634,8 +634,12 @@ fn holdout_refit(d: &Prepared, fit: &Fit) -> Option<Fit> {
 
 /// Fit `e` on top of `current` (several start values for the nonlinear ones).
 pub fn fit_candidate(d: &Prepared, current: &Fit, e: Effect) -> Fit {
-    fit_candidate_limited(d, current, e, 40, FitDetail::Full)
+    fit_candidate_limited(d, current, e, CANDIDATE_ITERATIONS, FitDetail::Full)
 }
+
+/// Levenberg–Marquardt iterations of a candidate's fit on the record (the bootstrap
+/// replicates', which start next to their optimum, take 12).
+const CANDIDATE_ITERATIONS: usize = 40;
 
 /// [`fit_candidate`] with at most `max_iter` Levenberg–Marquardt iterations (the bootstrap
 /// replicates start next to their optimum and need few), computing what `detail` asks for.
@@ -1082,7 +1086,7 @@ fn fit_and_judge(
     );
     let reference = Reference::new(d, reg, current);
     numerics::parallel::map_indexed(cands.len(), cands.len(), |k| {
-        let fit = fit_candidate_pair(d, current, cands[k], 40, FitDetail::Full);
+        let fit = fit_candidate_pair(d, current, cands[k], CANDIDATE_ITERATIONS, FitDetail::Full);
         judge(d, reg, &reference, flags, fit, cands[k].0, cands[k].1, th)
     })
 }
@@ -1215,18 +1219,25 @@ fn round_verdicts(
 const SHORT_OF_OPTIMUM: f64 = 1.0;
 
 /// The best parameters of the current model's layout that the round's candidate refits
-/// show: each candidate's fit with its effect taken out, evaluated; with its fitting SSE,
-/// when one is below the current model's.
-fn best_projection(d: &Prepared, current: &Fit, judged: &[Judged]) -> Option<(f64, Vec<f64>)> {
+/// show: each candidate's fit with its effect taken out, evaluated; as the current model
+/// with those parameters, their force and fitting SSE, when one is below the current
+/// model's.
+fn best_projection(d: &Prepared, current: &Fit, judged: &[Judged]) -> Option<Fit> {
     judged
         .iter()
         .map(|j| {
             let theta = extend(&j.fit.layout, &j.fit.theta, &current.layout, &[]);
             let force = evaluate(d, &current.layout, &theta, false).force;
-            (crate::model::sse_train(d, &force), theta)
+            (crate::model::sse_train(d, &force), theta, force)
         })
-        .filter(|(sse, _)| *sse < current.train_sse)
+        .filter(|(sse, _, _)| *sse < current.train_sse)
         .min_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(train_sse, theta, force)| Fit {
+            train_sse,
+            theta,
+            force,
+            ..current.clone()
+        })
 }
 
 /// The round's candidates judged against the current model's optimum, not a local stop of
@@ -1255,27 +1266,22 @@ fn judged_from_current_optimum(
     flags: &[usize],
     th: &AcceptanceThresholds,
 ) -> (Vec<Judged>, Fit) {
-    let with_sse = |sse: f64| Fit {
-        train_sse: sse,
-        ..current.clone()
-    };
-    let Some((sse, theta)) = best_projection(d, current, &judged) else {
+    let Some(better) = best_projection(d, current, &judged) else {
         return (judged, current.clone());
     };
-    if calibrate::statistic(current, &with_sse(sse)) <= SHORT_OF_OPTIMUM {
-        return (judged, with_sse(sse));
+    if calibrate::statistic(current, &better) <= SHORT_OF_OPTIMUM {
+        return (judged, better);
     }
-    let force = evaluate(d, &current.layout, &theta, false).force;
-    let better = Fit {
-        train_sse: sse,
-        force,
-        theta,
-        ..current.clone()
-    };
     let reference = Reference::new(d, reg, current);
     let refits = numerics::parallel::map_indexed(judged.len(), judged.len(), |k| {
         let (e, partner) = judged[k].candidate();
-        let fit = fit_candidate_pair(d, &better, (e, partner), 40, FitDetail::Full);
+        let fit = fit_candidate_pair(
+            d,
+            &better,
+            (e, partner),
+            CANDIDATE_ITERATIONS,
+            FitDetail::Full,
+        );
         (fit.train_sse < judged[k].fit.train_sse)
             .then(|| judge(d, reg, &reference, flags, fit, e, partner, th))
     });
@@ -1284,8 +1290,11 @@ fn judged_from_current_optimum(
         .zip(refits)
         .map(|(j, r)| r.unwrap_or(j))
         .collect();
-    let least = best_projection(d, current, &judged).map_or(sse, |(s, _)| s.min(sse));
-    (judged, with_sse(least))
+    let optimum = match best_projection(d, current, &judged) {
+        Some(again) if again.train_sse < better.train_sse => again,
+        _ => better,
+    };
+    (judged, optimum)
 }
 
 /// The first version's rules: a candidate passes when all four rules hold, and ranks by
