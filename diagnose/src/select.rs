@@ -1102,7 +1102,7 @@ fn round_verdicts(
     opts: &Options,
     round: usize,
     progress: &(dyn Fn(Progress) + Sync),
-) -> Round {
+) -> Vec<Verdict> {
     // The pairs this record can identify: tried as candidates, and counted in the
     // per-test level (the calibrated selector's only; the rules have no pairs).
     let pairs = if opts.selector == Selector::Calibrated {
@@ -1112,10 +1112,7 @@ fn round_verdicts(
     };
     let judged = fit_and_judge(d, reg, current, remaining, &pairs, flags, &opts.thresholds);
     if opts.selector != Selector::Calibrated {
-        return Round {
-            verdicts: rule_verdicts(judged),
-            optimum: None,
-        };
+        return rule_verdicts(judged);
     }
     let cal = &opts.calibration;
     let alpha = cal.alpha_per_test(pairs.len());
@@ -1214,19 +1211,7 @@ fn round_verdicts(
             }
         })
         .collect();
-    Round {
-        verdicts: pairs_where_alone_fails(verdicts),
-        optimum: (shortfall > SHORT_OF_OPTIMUM).then_some(optimum),
-    }
-}
-
-/// What a round of forward selection found: every candidate's verdict, and the current
-/// model at the least fitting SSE its layout was seen to reach when that is more than
-/// [`SHORT_OF_OPTIMUM`] noise units below its own ([`judged_from_current_optimum`]; the
-/// calibrated selector's only).
-struct Round {
-    verdicts: Vec<Verdict>,
-    optimum: Option<Fit>,
+    pairs_where_alone_fails(verdicts)
 }
 
 /// Least shortfall of the current model, in the statistic's noise units, for the round's
@@ -1310,19 +1295,6 @@ fn judged_from_current_optimum(
         _ => better,
     };
     (judged, optimum)
-}
-
-/// The current model fitted again from the better parameters of its layout a round saw
-/// (`optimum`, whose standard errors are the stop's), kept when it fits better and does not
-/// predict the held-out blocks worse than the current model ([`final_refit`]'s rule: on
-/// proving-ground null 154 the better fit went from 9.47 to 16.5 σ_F held-out).
-fn refitted_from(d: &Prepared, current: &Fit, optimum: &Fit) -> Fit {
-    let again = crate::model::fit(d, &current.layout, &optimum.theta);
-    if again.train_sse < current.train_sse && again.holdout_rmse(d) <= current.holdout_rmse(d) {
-        again
-    } else {
-        current.clone()
-    }
 }
 
 /// The first version's rules: a candidate passes when all four rules hold, and ranks by
@@ -1466,7 +1438,7 @@ fn forward_selection(
             total: remaining.len(),
         });
         let flags = flagged(d, reg, &residual(d, &sel.current.force), th);
-        let Round { verdicts, optimum } = round_verdicts(
+        let verdicts = round_verdicts(
             d,
             reg,
             &sel.current,
@@ -1508,15 +1480,7 @@ fn forward_selection(
                 .iter()
                 .filter(|v| v.shape_pass)
                 .find_map(|v| v.judged.fluid_shape.as_ref());
-            let Some(shape) = shape else {
-                // Nothing more is found: the final model is the current one at the best
-                // parameters the round saw its layout reach, not the stop its own fit
-                // left it at.
-                if let Some(optimum) = optimum {
-                    sel.current = refitted_from(d, &sel.current, &optimum);
-                }
-                break;
-            };
+            let Some(shape) = shape else { break };
             sel.fluid_shape
                 .push(fluid_shape_found(d, &sel.current, shape));
             sel.current = shape.clone();
@@ -1552,8 +1516,7 @@ fn forward_selection(
                 opts,
                 Effect::ALL.len() + 1,
                 progress,
-            )
-            .verdicts;
+            );
             if !v.first().is_some_and(|v| v.pass) {
                 sel.undecided.push(undecided_pair(
                     winner,
@@ -2388,26 +2351,6 @@ mod tests {
             (from_stop / from_optimum - 1.0).abs() < 0.1,
             "inertia {from_stop} from the stop, {from_optimum} from the optimum"
         );
-    }
-
-    #[test]
-    fn a_selection_that_finds_nothing_ends_at_the_current_models_optimum_not_its_stop() {
-        let null = stroke_record(5, 0.0);
-        let reg = regions(&null);
-        let base = crate::model::fit_baseline(&null);
-        let short = crate::model::fit_limited(&null, &base.layout, &theta_scaled(&base, 1.1), 0);
-        let gap = calibrate::statistic(&short, &base);
-        assert!(gap > 50.0, "the stop is {gap} noise units short");
-        let sel = forward_selection(&null, &reg, &short, &Options::default(), &|_| {});
-        let found: Vec<Effect> = sel.accepted.iter().map(|(e, _, _)| *e).collect();
-        assert!(found.is_empty(), "found {found:?}");
-        assert_eq!(sel.current.layout.effects, short.layout.effects);
-        // Within a noise unit of the optimum, and fitted there (its standard errors are
-        // its own, not the stop's).
-        let left = calibrate::statistic(&sel.current, &base);
-        assert!(left.abs() < 1.0, "{left} noise units from the optimum");
-        assert!(sel.current.se.iter().all(|s| s.is_finite()));
-        assert_ne!(sel.current.se, short.se);
     }
 
     fn theta_scaled(fit: &Fit, yield_factor: f64) -> Vec<f64> {
