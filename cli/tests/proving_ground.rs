@@ -103,6 +103,53 @@ fn quick_slice_of_the_independent_proving_ground() {
         false_total <= 1,
         "{false_total} false findings in 8 records"
     );
+    check_breakdown(&out, exact, hidden_total);
+}
+
+/// `breakdown.py` on the quick slice's directory: every grouping puts each of the eight
+/// records in exactly one class, and its classes' exact sets add up to the `exact` counted
+/// above from the same results.json (the script's scoring is study.py's, its grouping reads
+/// the scenario metas), and its detection table counts each hidden effect once.
+fn check_breakdown(out: &std::path::Path, exact: usize, hidden_total: usize) {
+    let script = repo_root().join("scripts/proving_ground/breakdown.py");
+    let json = out.join("breakdown.json");
+    let stdout = run_python(
+        RUN_FILE,
+        &[
+            script.to_str().unwrap(),
+            out.to_str().unwrap(),
+            "--json",
+            json.to_str().unwrap(),
+        ],
+        Duration::from_secs(120),
+    );
+    eprintln!("{stdout}");
+    let b = read_json(&json);
+    let table = b["table"].as_object().expect("a table of groupings");
+    assert!(table.len() >= 7, "groupings: {:?}", table.keys());
+    for (grouping, classes) in table {
+        let (mut records, mut exact_sum) = (0, 0);
+        for t in classes.as_object().unwrap().values() {
+            records += t["records"].as_u64().unwrap();
+            exact_sum += t["exact"].as_u64().unwrap();
+        }
+        assert_eq!(records, 8, "{grouping}: {records} records over its classes");
+        assert_eq!(
+            exact_sum as usize, exact,
+            "{grouping}: exact sets over its classes"
+        );
+    }
+    let hidden_counted: u64 = b["detection_by_hidden_count"]
+        .as_object()
+        .expect("a detection table")
+        .values()
+        .flat_map(|by_count| by_count.as_object().unwrap().values())
+        .map(|k| k[1].as_u64().unwrap())
+        .sum();
+    assert_eq!(
+        hidden_counted as usize, hidden_total,
+        "hidden effects in the detection table"
+    );
 }
 
 /// Generates proving-ground scenario `seed` with the independent Python simulator and
