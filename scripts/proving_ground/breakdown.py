@@ -20,10 +20,7 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from pgstats import wilson  # noqa: E402
-from study import score  # noqa: E402
-
-# study.py's bound on a null record's baseline held-out RMS over σ_F.
-NULL_BASELINE_WITHIN = 1.15
+from study import NULL_BASELINE_WITHIN, null_baseline_ratio, score  # noqa: E402
 
 
 def fs_band(fs):
@@ -44,11 +41,23 @@ def reported(run):
     return f"{len(run['findings'])} reported"
 
 
+def stroke(meta):
+    return meta["excitation"]["kind"]
+
+
+def current(meta):
+    return meta["excitation"]["current"]["mode"]
+
+
+def stroke_and_current(run, meta):
+    return f"{stroke(meta)}, {current(meta)}"
+
+
 # (name, what a record's run and meta say about it)
 GROUPINGS = [
-    ("stroke", lambda r, m: m["excitation"]["kind"]),
-    ("current", lambda r, m: m["excitation"]["current"]["mode"]),
-    ("stroke × current", lambda r, m: f'{m["excitation"]["kind"]}, {m["excitation"]["current"]["mode"]}'),
+    ("stroke", lambda r, m: stroke(m)),
+    ("current", lambda r, m: current(m)),
+    ("stroke × current", stroke_and_current),
     ("fluid law", lambda r, m: m["fluid"]["law"]),
     ("velocity channel", lambda r, m: m["measurement"]["velocity"]),
     ("sample rate", lambda r, m: fs_band(m["excitation"]["fs_hz"])),
@@ -94,8 +103,7 @@ def tally(rows):
     baselines within 15 % of σ_F."""
     nulls = [(r, s) for r, _, s in rows if not r["hidden"]]
     pos = [(r, s) for r, _, s in rows if r["hidden"]]
-    base = [r["baseline_rmse"] / r["sigma_F"] for r, _ in nulls
-            if r.get("sigma_F") and r.get("baseline_rmse") is not None]
+    base = [x for x in (null_baseline_ratio(r) for r, _ in nulls) if x is not None]
     return dict(
         records=len(rows),
         exact=sum(s["exact"] for _, _, s in rows),
@@ -176,11 +184,10 @@ def main():
     if not rows:
         sys.exit(f"{', '.join(args.dirs)}: no diagnosed record of selector {args.selector!r} in results.json")
     table = breakdown(rows)
-    key = dict(GROUPINGS)["stroke × current"]
     missed = {}
     for run, meta, s in sorted(rows, key=lambda r: r[0]["seed"]):
         if not s["exact"]:
-            missed.setdefault(key(run, meta), []).append(run["seed"])
+            missed.setdefault(stroke_and_current(run, meta), []).append(run["seed"])
     detection = detection_by_count(rows)
     md = markdown(table, missed, detection)
     print(md)
