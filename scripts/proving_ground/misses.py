@@ -22,6 +22,13 @@ library only. The causes, in the order they are tested:
 These read the trial's flags (held-out, criterion, interval, structure) and its
 calibrated evidence; they are a summary, not the selection's own reasoning, which is in
 the record's Markdown report.
+
+A second table reads the *leads* the last round leaves: the candidates of each record's
+last round (the one that accepted nothing) whose statistic T is at least R times its
+threshold and that were not accepted, for R in --lead-ratios. For each R: how many such
+lead effects there are, how many of them are hidden in their record (true) or not
+(false), on how many nulls one appears, and how many missed effects a lead names. It
+measures how much a "fits far better but is not confirmed" note would tell a user.
 """
 import argparse
 import collections
@@ -52,6 +59,51 @@ def cause(effect, trial):
     return "other"
 
 
+def last_round_leads(diagnosis, ratio):
+    """Effects of the last round's unaccepted candidates whose statistic is at least
+    `ratio` times its threshold (a pair's two effects), less the record's findings."""
+    trials = diagnosis["trials"]
+    if not trials:
+        return set()
+    last = max(t["round"] for t in trials)
+    found = {f["effect"] for f in diagnosis["findings"]}
+    leads = set()
+    for t in trials:
+        if t["round"] != last or t.get("accepted"):
+            continue
+        cal = t["evidence"].get("calibration") or {}
+        if cal.get("statistic", 0.0) >= ratio * cal.get("threshold", float("inf")):
+            leads |= set(t["effect"].split("+"))
+    return leads - found
+
+
+def leads_table(dirpath, records, selector, ratios):
+    print("| T / threshold at least | lead effects | hidden (true) | not hidden (false) "
+          "| nulls with a lead | missed effects a lead names |")
+    print("|---|---|---|---|---|---|")
+    diagnoses = []
+    for rec in records:
+        run = next((r for r in rec["runs"] if r["selector"] == selector), None)
+        if run is None or run["rc"] != 0:
+            continue
+        path = os.path.join(dirpath, "seed%04d.%s.json" % (rec["seed"], selector))
+        hidden = set(run["hidden"])
+        named = set(run.get("findings", [])).union(*map(set, run.get("undecided", [])))
+        diagnoses.append((hidden, hidden - named, json.load(open(path))))
+    nulls = sum(1 for h, _, _ in diagnoses if not h)
+    missed = sum(len(m) for _, m, _ in diagnoses)
+    for ratio in ratios:
+        n = true = null_leads = named = 0
+        for hidden, miss, d in diagnoses:
+            leads = last_round_leads(d, ratio)
+            n += len(leads)
+            true += len(leads & hidden)
+            null_leads += bool(leads) and not hidden
+            named += len(leads & miss)
+        print(f"| {ratio:g} | {n} | {true} | {n - true} | {null_leads} of {nulls} "
+              f"| {named} of {missed} |")
+
+
 CAUSES = ["absorbed", "below null", "no presliding", "held-out worse", "no gain",
           "interval", "structure", "other", "not tried"]
 
@@ -60,6 +112,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("dir")
     ap.add_argument("--selector", default="calibrated")
+    ap.add_argument("--lead-ratios", default="1,10,30,100,300",
+                    help="comma-separated ratios T / threshold for the leads table")
     a = ap.parse_args()
     res = json.load(open(os.path.join(a.dir, "results.json")))
     table = collections.defaultdict(collections.Counter)
@@ -95,6 +149,9 @@ def main():
     for c in CAUSES:
         if seeds[c]:
             print(f"- {c}: seeds {', '.join(str(s) for s in sorted(set(seeds[c])))}")
+    print()
+    leads_table(a.dir, res["records"], a.selector,
+                [float(x) for x in a.lead_ratios.split(",")])
 
 
 if __name__ == "__main__":
