@@ -77,29 +77,38 @@ def last_round_leads(diagnosis, ratio):
     return leads - found
 
 
-def leads_table(dirpath, records, selector, ratios):
-    print("| T / threshold at least | lead effects | hidden (true) | not hidden (false) "
-          "| nulls with a lead | missed effects a lead names |")
-    print("|---|---|---|---|---|---|")
-    diagnoses = []
+def diagnosed(dirpath, records, selector):
+    """(seed, hidden effects, missed effects, diagnosis JSON) of each record the selector
+    diagnosed; missed: hidden and neither found nor in an undecided group, in the order
+    the record hides them."""
+    out = []
     for rec in records:
         run = next((r for r in rec["runs"] if r["selector"] == selector), None)
         if run is None or run["rc"] != 0:
             continue
+        missed = [h for h in run["hidden"] if h not in run["findings"]
+                  and not any(h in g for g in run.get("undecided", []))]
         path = os.path.join(dirpath, "seed%04d.%s.json" % (rec["seed"], selector))
-        hidden = set(run["hidden"])
-        named = set(run.get("findings", [])).union(*map(set, run.get("undecided", [])))
-        diagnoses.append((hidden, hidden - named, json.load(open(path))))
-    nulls = sum(1 for h, _, _ in diagnoses if not h)
-    missed = sum(len(m) for _, m, _ in diagnoses)
+        with open(path) as f:
+            out.append((rec["seed"], run["hidden"], missed, json.load(f)))
+    return out
+
+
+def leads_table(diagnoses, ratios):
+    """The leads table of `diagnoses` ([`diagnosed`]), one row per ratio."""
+    print("| T / threshold at least | lead effects | hidden (true) | not hidden (false) "
+          "| nulls with a lead | missed effects a lead names |")
+    print("|---|---|---|---|---|---|")
+    nulls = sum(1 for _, h, _, _ in diagnoses if not h)
+    missed = sum(len(m) for _, _, m, _ in diagnoses)
     for ratio in ratios:
         n = true = null_leads = named = 0
-        for hidden, miss, d in diagnoses:
+        for _, hidden, miss, d in diagnoses:
             leads = last_round_leads(d, ratio)
             n += len(leads)
-            true += len(leads & hidden)
+            true += len(leads & set(hidden))
             null_leads += bool(leads) and not hidden
-            named += len(leads & miss)
+            named += len(leads & set(miss))
         print(f"| {ratio:g} | {n} | {true} | {n - true} | {null_leads} of {nulls} "
               f"| {named} of {missed} |")
 
@@ -118,22 +127,15 @@ def main():
     res = json.load(open(os.path.join(a.dir, "results.json")))
     table = collections.defaultdict(collections.Counter)
     seeds = collections.defaultdict(list)
-    for rec in res["records"]:
-        run = next((r for r in rec["runs"] if r["selector"] == a.selector), None)
-        if run is None or run["rc"] != 0:
-            continue
-        missed = [h for h in run["hidden"] if h not in run["findings"]
-                  and not any(h in g for g in run.get("undecided", []))]
-        if not missed:
-            continue
-        path = os.path.join(a.dir, "seed%04d.%s.json" % (rec["seed"], a.selector))
+    diagnoses = diagnosed(a.dir, res["records"], a.selector)
+    for seed, _, missed, d in diagnoses:
         last = {}
-        for tr in json.load(open(path))["trials"]:
+        for tr in d["trials"]:
             last[tr["effect"]] = tr
         for h in missed:
             c = cause(h, last[h]) if h in last else "not tried"
             table[h][c] += 1
-            seeds[c].append(rec["seed"])
+            seeds[c].append(seed)
     effects = sorted(table)
     print("| missed effect | " + " | ".join(CAUSES) + " | all |")
     print("|---|" + "---|" * (len(CAUSES) + 1))
@@ -150,8 +152,7 @@ def main():
         if seeds[c]:
             print(f"- {c}: seeds {', '.join(str(s) for s in sorted(set(seeds[c])))}")
     print()
-    leads_table(a.dir, res["records"], a.selector,
-                [float(x) for x in a.lead_ratios.split(",")])
+    leads_table(diagnoses, [float(x) for x in a.lead_ratios.split(",")])
 
 
 if __name__ == "__main__":
