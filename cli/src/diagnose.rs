@@ -54,6 +54,12 @@ pub struct DiagnoseArgs {
     /// comparison).
     #[arg(long, value_name = "NAME", default_value = "calibrated", value_parser = parse_selector)]
     pub selector: Selector,
+    /// How the yield force is interpolated in current between the knots of a record whose
+    /// current varies continuously: `lines` (straight lines) or `cubic` (a cubic Hermite
+    /// curve through the knots; held levels are always joined by lines). docs/diagnose.md
+    /// §2 compares them on the proving ground.
+    #[arg(long, value_name = "CURVE", default_value = "lines", value_parser = parse_yield_curve)]
+    pub yield_curve: ::diagnose::YieldCurve,
     /// Bootstrap replicates per selection round (`calibrated`).
     #[arg(long, value_name = "N", default_value_t = ::diagnose::Calibration::default().replicates)]
     pub replicates: usize,
@@ -80,6 +86,14 @@ fn parse_selector(s: &str) -> Result<Selector, String> {
     Selector::parse(s).ok_or_else(|| {
         format!("unknown selector '{s}' (expected one of: calibrated, rules, sindy)")
     })
+}
+
+fn parse_yield_curve(s: &str) -> Result<::diagnose::YieldCurve, String> {
+    use ::diagnose::YieldCurve;
+    [YieldCurve::Lines, YieldCurve::Cubic]
+        .into_iter()
+        .find(|c| c.name() == s)
+        .ok_or_else(|| format!("unknown yield curve '{s}' (expected one of: lines, cubic)"))
 }
 
 /// A one-line progress bar on stderr, drawn only when stderr is a terminal.
@@ -164,6 +178,7 @@ pub fn run(args: &DiagnoseArgs) -> Result<()> {
     let opts = Options {
         base_effects,
         selector: args.selector,
+        yield_curve: args.yield_curve,
         calibration: ::diagnose::Calibration {
             replicates: args.replicates,
             family_alpha: args.family_alpha,

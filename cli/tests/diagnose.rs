@@ -410,26 +410,21 @@ fn selector_and_calibration_options_are_checked() {
     let dir = TempDir::new("sel");
     let csv = dir.path("null.csv");
     write_scenario(&null_scenario(), &csv);
-    let o = mrtwin(&[
-        "diagnose".as_ref(),
-        csv.as_os_str(),
-        "--selector".as_ref(),
-        "magic".as_ref(),
-    ]);
-    assert_eq!(o.status.code(), Some(2));
-    assert!(
-        stderr(&o).contains("unknown selector 'magic'"),
-        "{}",
-        stderr(&o)
-    );
-    let o = mrtwin(&[
-        "diagnose".as_ref(),
-        csv.as_os_str(),
-        "--family-alpha".as_ref(),
-        "1.5".as_ref(),
-    ]);
-    assert_eq!(o.status.code(), Some(1));
-    assert!(stderr(&o).contains("--family-alpha 1.5"), "{}", stderr(&o));
+    // An option's bad value: the exit code (2 for clap's refusal, 1 for the check after
+    // it) and the message naming it.
+    let refused = |option: &str, value: &str, code: i32, says: &str| {
+        let o = mrtwin(&[
+            "diagnose".as_ref(),
+            csv.as_os_str(),
+            option.as_ref(),
+            value.as_ref(),
+        ]);
+        assert_eq!(o.status.code(), Some(code), "{option} {value}");
+        assert!(stderr(&o).contains(says), "{}", stderr(&o));
+    };
+    refused("--selector", "magic", 2, "unknown selector 'magic'");
+    refused("--yield-curve", "spline", 2, "unknown yield curve 'spline'");
+    refused("--family-alpha", "1.5", 1, "--family-alpha 1.5");
     let out_json = dir.path("r.json");
     let o = mrtwin(&[
         "diagnose".as_ref(),

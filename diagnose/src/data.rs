@@ -109,6 +109,8 @@ pub struct Prepared {
     /// `true` when the knots are the record's own held levels (at most 12 distinct
     /// currents), `false` when the current varies continuously and the knots are a grid.
     pub held_levels: bool,
+    /// How the yield force is interpolated between the knots of a grid.
+    pub yield_curve: YieldCurve,
     /// Stroke (cycle) index of each sample.
     pub cycle: Vec<usize>,
     /// Number of strokes.
@@ -466,6 +468,151 @@ pub fn knot_weights(knots: &[f64], i: f64) -> (usize, f64, f64) {
         .min(nk - 2);
     let w = knots[k + 1] - knots[k];
     (k, (i - knots[k]) / w, 1.0 / w)
+}
+
+/// Interpolation of a per-knot family at one current: up to four knots, each with its
+/// weight and the weight's derivative in current, `F(i) = Σ w_q F[q]`.
+#[derive(Debug, Clone, Copy)]
+pub struct KnotInterpolation {
+    /// The knots' indices (the first `len` are used).
+    pub index: [usize; 4],
+    /// Their weights.
+    pub weight: [f64; 4],
+    /// The weights' derivatives in current \[1/A\].
+    pub dweight: [f64; 4],
+    /// How many knots carry weight.
+    pub len: usize,
+    /// Straight lines between two knots: the slope is their difference over the spacing.
+    linear: bool,
+}
+
+impl KnotInterpolation {
+    fn add(&mut self, q: usize, w: f64, dw: f64) {
+        if let Some(p) = self.index[..self.len].iter().position(|&x| x == q) {
+            self.weight[p] += w;
+            self.dweight[p] += dw;
+        } else {
+            self.index[self.len] = q;
+            self.weight[self.len] = w;
+            self.dweight[self.len] = dw;
+            self.len += 1;
+        }
+    }
+    /// The interpolated value of `family` (the knots' values).
+    pub fn value(&self, family: &[f64]) -> f64 {
+        (0..self.len)
+            .map(|p| self.weight[p] * family[self.index[p]])
+            .sum()
+    }
+    /// Its derivative in current.
+    pub fn slope(&self, family: &[f64]) -> f64 {
+        if self.linear && self.len == 2 {
+            return (family[self.index[1]] - family[self.index[0]]) * self.dweight[1];
+        }
+        (0..self.len)
+            .map(|p| self.dweight[p] * family[self.index[p]])
+            .sum()
+    }
+    /// The (index, weight) pairs.
+    pub fn pairs(&self) -> impl Iterator<Item = (usize, f64)> + '_ {
+        (0..self.len).map(|p| (self.index[p], self.weight[p]))
+    }
+}
+
+/// How the yield force is interpolated in current between the knots of a grid (a
+/// continuously varying current; held levels are always joined by straight lines).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum YieldCurve {
+    /// Straight lines between knots.
+    #[default]
+    Lines,
+    /// A cubic Hermite curve through the knots ([`knot_interpolation`]).
+    Cubic,
+}
+
+impl YieldCurve {
+    /// Name on the command line and in the report.
+    pub fn name(self) -> &'static str {
+        match self {
+            YieldCurve::Lines => "lines",
+            YieldCurve::Cubic => "cubic",
+        }
+    }
+}
+
+/// The interpolation of the knots at current `i`: straight lines between knots
+/// ([`knot_weights`]), or with `cubic` a cubic Hermite curve whose slope at each interior
+/// knot is that of the parabola through it and its two neighbours (the secant at the end
+/// knots). Both pass through every knot and are flat beyond the end knots; the curve's
+/// weights are linear in the knots' values, so a fit's Jacobian stays a sum of columns.
+///
+/// The yield force of a grid of knots over a continuously varying current takes the curve
+/// under [`YieldCurve::Cubic`] ([`crate::model`]): against the generator's own τ0(I) at the
+/// knots of continuous-current proving-ground records, straight lines are 1.3–4 σ_F off
+/// and the curve 0.3–0.9 σ_F (docs/diagnose.md, Limits).
+pub fn knot_interpolation(knots: &[f64], i: f64, cubic: bool) -> KnotInterpolation {
+    let (k, lam, dlam) = knot_weights(knots, i);
+    let nk = knots.len();
+    let mut out = KnotInterpolation {
+        index: [0; 4],
+        weight: [0.0; 4],
+        dweight: [0.0; 4],
+        len: 0,
+        linear: false,
+    };
+    if nk == 1 {
+        out.add(0, 1.0, 0.0);
+        return out;
+    }
+    let k2 = k + 1;
+    if !cubic || nk < 3 || dlam == 0.0 {
+        out.linear = true;
+        out.add(k, 1.0 - lam, -dlam);
+        out.add(k2, lam, dlam);
+        return out;
+    }
+    let h = knots[k2] - knots[k];
+    let t = lam;
+    let (t2, t3) = (t * t, t * t * t);
+    let (h00, h10, h01, h11) = (
+        2.0 * t3 - 3.0 * t2 + 1.0,
+        t3 - 2.0 * t2 + t,
+        -2.0 * t3 + 3.0 * t2,
+        t3 - t2,
+    );
+    let (d00, d10, d01, d11) = (
+        (6.0 * t2 - 6.0 * t) / h,
+        (3.0 * t2 - 4.0 * t + 1.0) / h,
+        (-6.0 * t2 + 6.0 * t) / h,
+        (3.0 * t2 - 2.0 * t) / h,
+    );
+    out.add(k, h00, d00);
+    out.add(k2, h01, d01);
+    // h · slope at knot q as weights on the knots: the parabola's derivative through q's
+    // neighbours, or the secant at an end knot.
+    let slope = |q: usize| -> [(usize, f64); 3] {
+        if q == 0 {
+            let g = knots[1] - knots[0];
+            [(0, -h / g), (1, h / g), (1, 0.0)]
+        } else if q == nk - 1 {
+            let g = knots[q] - knots[q - 1];
+            [(q - 1, -h / g), (q, h / g), (q, 0.0)]
+        } else {
+            let (a, b) = (knots[q] - knots[q - 1], knots[q + 1] - knots[q]);
+            [
+                (q - 1, -h * b / (a * (a + b))),
+                (q, h * (b - a) / (a * b)),
+                (q + 1, h * a / (b * (a + b))),
+            ]
+        }
+    };
+    for (q, w) in slope(k) {
+        out.add(q, h10 * w, d10 * w);
+    }
+    for (q, w) in slope(k2) {
+        out.add(q, h11 * w, d11 * w);
+    }
+    out
 }
 
 /// The knot nearest current `i` by interpolation weight: the one [`knot_weights`] gives at
@@ -1054,6 +1201,7 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
         energy_kj,
         h,
         held_levels,
+        yield_curve: YieldCurve::Lines,
         knots,
         knot_smoothing: [0.0; 3],
         anti_alias: None,
@@ -1088,6 +1236,35 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
+
+    #[test]
+    fn cubic_knot_interpolation_passes_through_the_knots_and_follows_a_parabola_inside() {
+        // Uneven knots; a parabola's values at them.
+        let knots = [0.0, 0.3, 0.5, 0.9, 1.2, 2.0];
+        let f = |i: f64| 3.0 - 2.0 * i + 1.5 * i * i;
+        let fam: Vec<f64> = knots.iter().map(|&k| f(k)).collect();
+        for (q, &k) in knots.iter().enumerate() {
+            let ip = knot_interpolation(&knots, k, true);
+            assert!((ip.value(&fam) - fam[q]).abs() < 1e-12, "knot {q}");
+        }
+        // Between interior knots (slopes from parabolas through three knots, exact for a
+        // parabola) the curve is the parabola, and so is its slope; the linear one is not.
+        for i in [0.35, 0.47, 0.6, 0.85, 1.0, 1.15] {
+            let ip = knot_interpolation(&knots, i, true);
+            assert!((ip.value(&fam) - f(i)).abs() < 1e-12, "value at {i}");
+            assert!(
+                (ip.slope(&fam) - (-2.0 + 3.0 * i)).abs() < 1e-9,
+                "slope at {i}"
+            );
+            let w: f64 = ip.pairs().map(|(_, w)| w).sum();
+            assert!((w - 1.0).abs() < 1e-12);
+            let lin = knot_interpolation(&knots, i, false);
+            assert!((lin.value(&fam) - f(i)).abs() > 1e-4, "linear at {i}");
+        }
+        // Flat beyond the end knots.
+        let ip = knot_interpolation(&knots, 2.5, true);
+        assert!((ip.value(&fam) - fam[5]).abs() < 1e-12 && ip.slope(&fam) == 0.0);
+    }
 
     /// `n` samples `dt` apart of a sinusoidal stroke of amplitude `amp` at `freq(t)` Hz
     /// (exact velocity), the current `current(t)` and the force `force(t, v, i)`.

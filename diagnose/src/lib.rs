@@ -26,7 +26,7 @@ pub mod subsample;
 pub mod unexplained;
 
 pub use calibrate::Calibration;
-pub use data::{DataError, Signals};
+pub use data::{DataError, Signals, YieldCurve};
 pub use report::Report;
 pub use select::{
     diagnose, diagnose_with_progress, AcceptanceThresholds, Diagnosis, Options, Progress, Selector,

@@ -55,6 +55,9 @@ pub struct Options {
     /// Effects the baseline already has (a twin's own, `diagnose --params`): fitted with
     /// the baseline and never candidates.
     pub base_effects: Vec<Effect>,
+    /// How the yield force is interpolated between the knots of a grid (a continuously
+    /// varying current).
+    pub yield_curve: crate::data::YieldCurve,
 }
 
 /// What a long diagnosis is doing, for a progress bar.
@@ -2008,6 +2011,7 @@ pub fn diagnose_with_progress(
         total: 1,
     });
     let mut d = prepare(signals)?;
+    d.yield_curve = opts.yield_curve;
     let reg = regions(&d);
     let (base, held_knots, slow_knots) = settled_baseline(&mut d, opts);
     let d = d;

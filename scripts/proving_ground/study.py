@@ -18,6 +18,7 @@ import hashlib
 import json
 import multiprocessing as mp
 import os
+import shlex
 import shutil
 import statistics
 import subprocess
@@ -69,7 +70,7 @@ def file_sha256(path):
 
 def run_one(task):
     """Worker: generate seed's scenario (cached in out dir) and diagnose it per selector."""
-    seed, out, binary, selectors, timeout, use_flag, bin_sha, resume = task
+    seed, out, binary, selectors, timeout, use_flag, bin_sha, resume, extra_args = task
     csv = os.path.join(out, f"seed{seed:04d}.csv")
     meta_path = os.path.join(out, f"seed{seed:04d}.meta.json")
     t0 = time.process_time()
@@ -93,11 +94,11 @@ def run_one(task):
         if resume and os.path.exists(side):
             with open(side) as f:
                 old = json.load(f)
-            if old.get("binary_sha256") == bin_sha:
+            if old.get("binary_sha256") == bin_sha and old.get("diagnose_args", []) == extra_args:
                 old["reused"] = True
                 res.append(old)
                 continue
-        cmd = [binary, "diagnose", csv, "--json", js, "--report", os.devnull]
+        cmd = [binary, "diagnose", csv, "--json", js, "--report", os.devnull] + extra_args
         if use_flag:
             cmd += ["--selector", sel]
         t1 = time.perf_counter()
@@ -123,6 +124,7 @@ def run_one(task):
         else:
             entry["error"] = err.strip().splitlines()[-1] if err.strip() else str(rc)
         entry["binary_sha256"] = bin_sha
+        entry["diagnose_args"] = extra_args
         with open(side, "w") as f:
             json.dump(entry, f)
         res.append(entry)
@@ -293,6 +295,8 @@ def main():
     ap.add_argument("--timeout", type=float, default=600.0, help="seconds per diagnose run")
     ap.add_argument("--out", help="directory for CSVs, metas and diagnosis JSONs (default: a temp dir)")
     ap.add_argument("--markdown", help="write the Markdown section here")
+    ap.add_argument("--diagnose-args", default="",
+                    help="further arguments of every diagnose run, e.g. \"--yield-curve cubic\"")
     ap.add_argument("--resume", action="store_true",
                     help="reuse diagnosis runs already in --out made by the same binary (sha256)")
     args = ap.parse_args()
@@ -322,7 +326,9 @@ def main():
         use_flag, label_of = True, {s: s for s in run_sels}
 
     bin_sha = file_sha256(binary)
-    tasks = [(s, out, binary, run_sels, args.timeout, use_flag, bin_sha, args.resume) for s in seeds]
+    extra_args = shlex.split(args.diagnose_args)
+    tasks = [(s, out, binary, run_sels, args.timeout, use_flag, bin_sha, args.resume, extra_args)
+             for s in seeds]
     t0 = time.time()
     records = []
     with mp.get_context("fork").Pool(args.jobs) as pool:
