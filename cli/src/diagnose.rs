@@ -89,10 +89,7 @@ fn parse_selector(s: &str) -> Result<Selector, String> {
 }
 
 fn parse_yield_curve(s: &str) -> Result<::diagnose::YieldCurve, String> {
-    use ::diagnose::YieldCurve;
-    [YieldCurve::Lines, YieldCurve::Cubic]
-        .into_iter()
-        .find(|c| c.name() == s)
+    ::diagnose::YieldCurve::parse(s)
         .ok_or_else(|| format!("unknown yield curve '{s}' (expected one of: lines, cubic)"))
 }
 

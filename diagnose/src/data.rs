@@ -475,14 +475,16 @@ pub fn knot_weights(knots: &[f64], i: f64) -> (usize, f64, f64) {
 #[derive(Debug, Clone, Copy)]
 pub struct KnotInterpolation {
     /// The knots' indices (the first `len` are used).
-    pub index: [usize; 4],
+    index: [usize; 4],
     /// Their weights.
-    pub weight: [f64; 4],
+    weight: [f64; 4],
     /// The weights' derivatives in current \[1/A\].
-    pub dweight: [f64; 4],
+    dweight: [f64; 4],
     /// How many knots carry weight.
-    pub len: usize,
-    /// Straight lines between two knots: the slope is their difference over the spacing.
+    len: usize,
+    /// Straight lines between two knots: the slope is their difference times the inverse
+    /// spacing, the arithmetic of the lines before the curve existed (so a record on lines
+    /// is fitted bit for bit as before).
     linear: bool,
 }
 
@@ -537,6 +539,12 @@ impl YieldCurve {
             YieldCurve::Lines => "lines",
             YieldCurve::Cubic => "cubic",
         }
+    }
+    /// The curve of a name ([`YieldCurve::name`]).
+    pub fn parse(s: &str) -> Option<Self> {
+        [YieldCurve::Lines, YieldCurve::Cubic]
+            .into_iter()
+            .find(|x| x.name() == s)
     }
 }
 

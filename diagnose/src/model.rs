@@ -456,8 +456,12 @@ fn evaluate_at(d: &Prepared, inp: &Channels, lay: &Layout, theta: &[f64], jac: b
         // leaves unidentified (c of 10⁶–10⁸ N s/m) must not reach past its neighbours, as
         // the curve's slopes would (proving-ground seeds 644 and 723, all three families
         // on the curve: baseline 4.3 → 63 and 4.6 → 57 σ_F).
-        let ipy = knot_interpolation(&d.knots, i_eff, cubic);
         let ip = knot_interpolation(&d.knots, i_eff, false);
+        let ipy = if cubic {
+            knot_interpolation(&d.knots, i_eff, true)
+        } else {
+            ip
+        };
         let fy_raw = ipy.value(&theta[..nk]);
         let c_raw = ip.value(&theta[nk..2 * nk]);
         let dfy_di = ipy.slope(&theta[..nk]);
@@ -984,12 +988,14 @@ fn fluid_law_at<'a>(d: &'a Prepared, base: &'a Fit) -> impl Fn(usize, f64) -> f6
     let leak_rel = th[lay.leak_rel_index()].max(0.0);
     let cubic = d.yield_curve == YieldCurve::Cubic && !d.held_levels;
     move |j: usize, v: f64| {
-        let fy = knot_interpolation(&d.knots, d.i[j], cubic)
-            .value(&th[..nk])
-            .max(FY_MIN);
-        let c = knot_interpolation(&d.knots, d.i[j], false)
-            .value(&th[nk..2 * nk])
-            .max(C_MIN);
+        let ip = knot_interpolation(&d.knots, d.i[j], false);
+        let ipy = if cubic {
+            knot_interpolation(&d.knots, d.i[j], true)
+        } else {
+            ip
+        };
+        let fy = ipy.value(&th[..nk]).max(FY_MIN);
+        let c = ip.value(&th[nk..2 * nk]).max(C_MIN);
         bingham::force_leaky(v, fy, c, leak.hypot(leak_rel * fy / c)).0
     }
 }
@@ -2008,8 +2014,9 @@ mod tests {
     }
 
     /// On a continuously varying current the knots are a grid, and under
-    /// [`YieldCurve::Cubic`] the yield force is a cubic curve between them; its Jacobian, the field lag's
-    /// through the curve's slope in current included, matches finite differences too.
+    /// [`YieldCurve::Cubic`] the yield force is a cubic curve between them; its Jacobian,
+    /// the field lag's through the curve's slope in current included, matches finite
+    /// differences too.
     #[test]
     fn jacobian_matches_finite_differences_on_a_grid_of_knots() {
         let s = crate::data::tests::sine_record(

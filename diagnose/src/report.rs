@@ -362,6 +362,9 @@ pub struct Report {
     pub samples: usize,
     /// How candidates were accepted (`calibrated`, `rules`, `sindy`).
     pub selector: String,
+    /// How the yield force was interpolated between the knots of a grid (`lines`,
+    /// `cubic`; held levels are always joined by lines).
+    pub yield_curve: String,
     /// What the measurement model found: noise levels, rebuilt velocity, stuck stretches.
     pub measurement: crate::measure::MeasurementSummary,
     /// The split.

@@ -2052,6 +2052,7 @@ pub fn diagnose_with_progress(
         input: input.to_string(),
         samples: d.len(),
         selector: opts.selector.name().into(),
+        yield_curve: opts.yield_curve.name().into(),
         measurement: crate::measure::MeasurementSummary {
             anti_alias: d.anti_alias,
             current: Some(d.current.summary()),
