@@ -314,6 +314,27 @@ fn of_two_leak_basins_the_one_that_predicts_is_the_baseline() {
     assert_reports_nothing(289, &d);
 }
 
+/// The force noise a record is judged against, on a slowly sampled null (proving-ground
+/// seed 87: 200 Hz, a random current, a civil damper, white force noise). The force
+/// channel's own estimate (residuals about cubics over ±3 samples) takes for noise the
+/// force a cubic over 35 ms cannot follow, and said 1.90 σ_F; a finding's held-out gain had
+/// to clear a floor 3.6 times too high. Read again from the settled baseline's residual
+/// (diagnose::measure::residual_white_noise_sigma), it must come near the generator's σ_F,
+/// a little under it where the anti-alias filter has taken the top of the band.
+#[test]
+fn a_slowly_sampled_records_force_noise_is_read_from_the_baselines_residual() {
+    let (m, d) = generate_null_and_diagnose(87);
+    assert_eq!(m["excitation"]["fs_hz"], 200, "the scenario changed");
+    let sigma_f = m["sigma_F_N"].as_f64().unwrap();
+    let hf = d["measurement"]["force_noise_hf_n"].as_f64().unwrap();
+    eprintln!("force noise {:.3} σ_F", hf / sigma_f);
+    assert!(
+        (0.8 * sigma_f..=1.3 * sigma_f).contains(&hf),
+        "force noise {hf:.1} N against the generator's σ_F {sigma_f:.1} N"
+    );
+    assert_reports_nothing(87, &d);
+}
+
 /// A compliance whose gain is in the samples right after each reversal (proving-ground
 /// seed 159: a compressible fluid with 0.03 % air and a 12 kg moving mass, 500 Hz,
 /// Savitzky–Golay velocity). Its held-out RMS falls 213.8 → 108.8 N, but the smoothed
@@ -1012,12 +1033,15 @@ fn a_friction_the_fluids_yield_absorbs_is_not_found_and_the_limits_say_why() {
     );
 }
 
-/// Within one record, the null twin's detection limits put each hidden effect on the side
-/// the selection took (proving-ground seed 65: a polytropic gas spring at 5.6 times its
-/// null twin's limit is found, a Dahl seal friction at 0.64 times it is not; the thermal
-/// softening, found at 1.3 times its limit, is only held to within a factor 2). The
-/// generator's effects are not the candidates' shapes, so this is the limit's
-/// linearisation of diagnose's own candidates read against independent physics.
+/// Within one record, the null twin's detection limits place each hidden effect about where
+/// the selection finds it (proving-ground seed 65: a polytropic gas spring at 7.2 times its
+/// null twin's limit; a Dahl seal friction at 0.83 times it and a thermal softening at 1.7
+/// times it, both near the limit, where a test at its threshold finds an effect about half
+/// the time). The generator's effects are not the candidates' shapes, so this is the
+/// limit's linearisation of diagnose's own candidates read against independent physics.
+/// (Until the force noise was read from the baseline's residual too, the limits were
+/// higher: gas 5.6, friction 0.64 and thermal 1.3 times them, and the friction was not
+/// found; it now is, and the set is exact.)
 #[test]
 fn the_null_twins_detection_limits_predict_what_the_record_shows() {
     let (m, d) = generate_and_diagnose(65);
@@ -1037,22 +1061,24 @@ fn the_null_twins_detection_limits_predict_what_the_record_shows() {
             .unwrap();
         size / limit
     };
-    for (effect, above) in [("gas_spring", true), ("seal_friction", false)] {
+    eprintln!(
+        "gas {:.2}, friction {:.2}, thermal {:.2} × the twin's limits; found {found:?}",
+        ratio("gas_spring"),
+        ratio("seal_friction"),
+        ratio("thermal_softening")
+    );
+    let q = ratio("gas_spring");
+    assert!(q > 2.0, "gas spring at {q} times its twin's limit");
+    for effect in ["seal_friction", "thermal_softening"] {
         let q = ratio(effect);
-        assert_eq!(
-            q > 1.0,
-            above,
-            "{effect}: hidden at {q} times its twin's limit"
-        );
-        assert_eq!(
-            found.contains(&effect),
-            above,
-            "{effect} at {q} × its limit: found {found:?}"
+        assert!(
+            (0.5..2.0).contains(&q),
+            "{effect} at {q} × its twin's limit"
         );
     }
-    let q = ratio("thermal_softening");
-    assert!(
-        (0.5..2.0).contains(&q),
-        "thermal softening at {q} × its twin's limit"
+    assert_eq!(
+        found,
+        ["gas_spring", "seal_friction", "thermal_softening"],
+        "the limits put every effect within reach"
     );
 }

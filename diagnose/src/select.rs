@@ -1877,6 +1877,17 @@ fn settled_baseline(
         slow_knots = slow_knots_named(d, &held, &reach);
         base = held;
     }
+    // The force noise that the thresholds scale with, read again from the settled
+    // baseline's residual where that is lower than the force channel's own estimate: a
+    // cubic over ±3 samples of a slowly sampled record cannot follow the force itself
+    // ([`crate::measure::residual_white_noise_sigma`]). On proving-ground seed 663 (200 Hz,
+    // random current, a seal friction) the channel said 3.8 σ_F, and the friction's
+    // held-out gain fell short of the floor it set.
+    let unmodelled: Vec<f64> = d.f.iter().zip(&base.force).map(|(f, p)| f - p).collect();
+    let from_residual = crate::measure::residual_white_noise_sigma(&d.t, &unmodelled, &d.h);
+    if from_residual.is_finite() && from_residual < d.measurement.force_noise_hf_n {
+        d.measurement.force_noise_hf_n = from_residual;
+    }
     // The yield softness is a property of the fluid the baseline has settled: candidates
     // and their bootstrap replicates hold it (free, it trades with a seal friction, whose
     // smoothed step is the same shape at one current; on proving-ground seed 42 the
