@@ -243,7 +243,8 @@ fn white_noise_sigma(t: &[f64], y: &[f64], runs: &[(usize, usize)]) -> f64 {
 /// follow. Sampled slowly, that is force: at 200 Hz a random current moves the yield force
 /// and a stroke turns within 7 samples, and on the proving ground's random-current records
 /// at 200 Hz the channel's estimate was a median 1.43 × the generator's σ_F (up to 4.8 ×;
-/// 0.8–1.1 × from 1 kHz up). The residual of a fitted model has that force taken out.
+/// medians of 0.8–1.0 × from 1 kHz up). The residual of a fitted model has that force
+/// taken out.
 pub fn residual_white_noise_sigma(t: &[f64], r: &[f64], h: &[f64]) -> f64 {
     white_noise_sigma(t, r, &contiguous_runs(h))
 }
