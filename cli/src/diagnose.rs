@@ -58,7 +58,7 @@ pub struct DiagnoseArgs {
     /// current varies continuously: `lines` (straight lines) or `cubic` (a cubic Hermite
     /// curve through the knots; held levels are always joined by lines). docs/diagnose.md
     /// §2 compares them on the proving ground.
-    #[arg(long, value_name = "CURVE", default_value = "lines", value_parser = parse_yield_curve)]
+    #[arg(long, value_name = "CURVE", default_value = "cubic", value_parser = parse_yield_curve)]
     pub yield_curve: ::diagnose::YieldCurve,
     /// Bootstrap replicates per selection round (`calibrated`).
     #[arg(long, value_name = "N", default_value_t = ::diagnose::Calibration::default().replicates)]

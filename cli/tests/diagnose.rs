@@ -436,7 +436,7 @@ fn selector_and_calibration_options_are_checked() {
     ]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     assert_eq!(json(&out_json)["selector"], "rules");
-    assert_eq!(json(&out_json)["yield_curve"], "lines");
+    assert_eq!(json(&out_json)["yield_curve"], "cubic");
 }
 
 /// A broadband stroke with a current that sweeps continuously (no held level): the loop

@@ -164,23 +164,24 @@ fn generate_and_diagnose(seed: u32) -> (serde_json::Value, serde_json::Value) {
 fn generate_and_diagnose_with_residuals(
     seed: u32,
 ) -> (serde_json::Value, serde_json::Value, String) {
-    generate_and_diagnose_as(seed, false)
+    generate_and_diagnose_as(seed, false, &[])
 }
 
 /// Scenario `seed`'s null twin (`generate.py --null-twin`: the same damper, fluid,
 /// excitation and measurement noise with nothing hidden) diagnosed: its meta JSON and the
 /// diagnosis JSON.
 fn generate_null_twin_and_diagnose(seed: u32) -> (serde_json::Value, serde_json::Value) {
-    let (m, d, _) = generate_and_diagnose_as(seed, true);
+    let (m, d, _) = generate_and_diagnose_as(seed, true, &[]);
     assert_null(seed, &m);
     (m, d)
 }
 
-/// Generates scenario `seed` (or its null twin) and diagnoses it: meta, diagnosis and the
-/// `--residuals` CSV text.
+/// Generates scenario `seed` (or its null twin) and diagnoses it, with diagnose's options
+/// `extra` besides the outputs: meta, diagnosis and the `--residuals` CSV text.
 fn generate_and_diagnose_as(
     seed: u32,
     null_twin: bool,
+    extra: &[&str],
 ) -> (serde_json::Value, serde_json::Value, String) {
     let dir = TempDir::new(&format!(
         "pg-seed{seed}{}",
@@ -207,20 +208,19 @@ fn generate_and_diagnose_as(
     }
     run_python(RUN_FILE, &args, Duration::from_secs(300));
     let (report, residuals) = (dir.path("d.md"), dir.path("r.residuals.csv"));
+    let mut diagnose_args = vec![
+        "diagnose",
+        csv.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+        "--residuals",
+        residuals.to_str().unwrap(),
+    ];
+    diagnose_args.extend_from_slice(extra);
     succeeded(
-        run(
-            env!("CARGO_BIN_EXE_mrtwin"),
-            &[
-                "diagnose",
-                csv.to_str().unwrap(),
-                "--json",
-                json.to_str().unwrap(),
-                "--report",
-                report.to_str().unwrap(),
-                "--residuals",
-                residuals.to_str().unwrap(),
-            ],
-        ),
+        run(env!("CARGO_BIN_EXE_mrtwin"), &diagnose_args),
         "mrtwin diagnose",
     );
     let residuals = std::fs::read_to_string(&residuals).expect("diagnose wrote its residuals");
@@ -386,8 +386,9 @@ fn a_compliance_whose_gain_is_sharp_passes_the_structure_rule() {
 /// misfits (49–99 N) worse, so pooled the held-out RMS rose and only the typical block's
 /// reading (diagnose::select, `broad_gain`, sessions 53–69) found it. Since session 70 the
 /// candidates are fitted again from the baseline's better parameters
-/// (`judged_from_current_optimum`): the gas takes the pooled held-out RMS down by half, and
-/// nothing else is found. The typical-block reading keeps its unit test
+/// (`judged_from_current_optimum`): the gas takes the pooled held-out RMS down by a quarter
+/// (42.8 → 31.6 N with the yield force on the default cubic curve between the knots; by
+/// half on straight lines, before session 80), and nothing else is found. The typical-block reading keeps its unit test
 /// (`one_extrapolated_block_neither_hides_a_broad_gain_nor_passes_as_one`).
 #[test]
 fn a_gas_spring_fitted_from_the_baselines_optimum_predicts_the_held_out_blocks() {
@@ -412,7 +413,7 @@ fn a_gas_spring_fitted_from_the_baselines_optimum_predicts_the_held_out_blocks()
     // ... and from its better parameters the gas predicts the held-out blocks pooled, and
     // in the typical block, with no block hurt more than the typical block gains.
     let (b, a) = (num("holdout_rmse_before_N"), num("holdout_rmse_after_N"));
-    assert!(a < 0.7 * b, "pooled held-out {b:.2} -> {a:.2} N");
+    assert!(a < 0.8 * b, "pooled held-out {b:.2} -> {a:.2} N");
     let (tb, ta) = (
         num("holdout_typical_block_rmse_before_N"),
         num("holdout_typical_block_rmse_after_N"),
@@ -441,7 +442,12 @@ fn a_gas_spring_fitted_from_the_baselines_optimum_predicts_the_held_out_blocks()
 /// the three starts, 3 ms, the lag ended at 2.8 ms and explained nothing, and nothing was
 /// reported. Each start is now fitted part of the way and the best fitted one carried on
 /// (diagnose::select::fit_candidate_limited): the lag is found near the generator's, and
-/// nothing that was not hidden.
+/// nothing that was not hidden. Its interval is not asserted: with the yield force on the
+/// default cubic curve the lag comes out at 21.1 ms [20.4, 21.9] against the driver's
+/// effective 26.8 ms (on straight lines, before session 80, the interval held it), and the
+/// fitting and held-out halves agree, so nothing widens it: a first-order lag fitted to a
+/// second-order driver is a model-form error that an interval from the fit's own noise
+/// cannot show (BENCHMARKS.md, issue 10, session 80).
 #[test]
 fn a_field_lag_is_fitted_from_the_start_that_fits_best() {
     let (m, d) = generate_and_diagnose(287);
@@ -463,9 +469,9 @@ fn a_field_lag_is_fitted_from_the_start_that_fits_best() {
     let (tau, ci) = finding_parameter(&d, "field_lag", "field_time_constant");
     eprintln!("lag {tau:.2} ms {ci:?}, generator's effective {truth:.2} ms");
     // The generator's lag is second order with rails; its effective time constant is an
-    // approximation, which the interval (widened by the halves' spread) must hold.
+    // approximation, which the first-order lag must come within 30 % of.
     assert!(
-        (tau / truth - 1.0).abs() < 0.5 && ci[0] <= truth && truth <= ci[1],
+        (tau / truth - 1.0).abs() < 0.3,
         "lag {tau:.2} ms {ci:?} against the generator's effective {truth:.2} ms"
     );
     let lag = entry_of(&d["findings"], "field_lag");
@@ -796,9 +802,15 @@ fn a_field_lag_is_fitted_on_current_steps_the_split_keeps_in_the_fitting_blocks(
 /// Held at the neighbours' c (diagnose::model::hold_unidentified_viscous, kept because it
 /// predicts no worse) it predicts them at 9.3 σ_F. The knots stay named, with the value
 /// they were given; no knot of the baseline is left past the limit; nothing is found.
+/// Run with the yield force on straight lines between the knots (`--yield-curve lines`,
+/// the default until session 80): on the default cubic curve no knot of this record runs
+/// away (baseline 5.8 σ_F), and the hold, which does not depend on the curve, would go
+/// untested here.
 #[test]
 fn a_knot_whose_viscous_coefficient_runs_away_takes_its_neighbours() {
-    let (m, d) = generate_null_and_diagnose(154);
+    let (m, d, _) = generate_and_diagnose_as(154, false, &["--yield-curve", "lines"]);
+    assert_null(154, &m);
+    assert_eq!(d["yield_curve"], "lines");
     assert_reports_nothing(154, &d);
     let sigma_f = m["sigma_F_N"].as_f64().unwrap();
     let held_out = d["baseline"]["holdout_rmse_N"].as_f64().unwrap();
@@ -832,6 +844,37 @@ fn a_knot_whose_viscous_coefficient_runs_away_takes_its_neighbours() {
         held_out < 11.0 * sigma_f,
         "baseline held-out {:.2} σ_F (13.2 with the runaway knots)",
         held_out / sigma_f
+    );
+}
+
+/// The yield force on a cubic curve between the knots of a grid, the default since
+/// session 80 (proving-ground null seed 314, a validation seed: a bi-viscous fluid of
+/// viscosity ratio 125 under a random current, 16 s of 1 kHz random strokes, velocity by
+/// central differences). With straight lines between the eight knots, the baseline
+/// predicted one held-out block at 13.5 σ_F and all five at 6.2 σ_F; along the curve every
+/// block is within 1.5 σ_F (1.38 pooled). The same record is diagnosed both ways: the
+/// default names its curve, reports nothing, and predicts the held-out blocks under
+/// 2 σ_F and under half what the lines do.
+#[test]
+fn a_random_currents_yield_force_follows_a_cubic_curve_between_the_knots() {
+    let (m, d, _) = generate_and_diagnose_as(314, false, &[]);
+    assert_null(314, &m);
+    let (_, lines, _) = generate_and_diagnose_as(314, false, &["--yield-curve", "lines"]);
+    assert_eq!(d["yield_curve"], "cubic", "the default curve");
+    assert_eq!(lines["yield_curve"], "lines");
+    assert_reports_nothing(314, &d);
+    let sigma_f = m["sigma_F_N"].as_f64().unwrap();
+    let held_out = |d: &serde_json::Value| d["baseline"]["holdout_rmse_N"].as_f64().unwrap();
+    let (curve, straight) = (held_out(&d), held_out(&lines));
+    eprintln!(
+        "baseline held-out: curve {:.2} σ_F, lines {:.2} σ_F",
+        curve / sigma_f,
+        straight / sigma_f
+    );
+    assert!(curve < 2.0 * sigma_f, "curve {:.2} σ_F", curve / sigma_f);
+    assert!(
+        curve < 0.5 * straight,
+        "curve {curve:.1} N against lines {straight:.1} N"
     );
 }
 

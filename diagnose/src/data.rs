@@ -526,9 +526,10 @@ impl KnotInterpolation {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum YieldCurve {
     /// Straight lines between knots.
-    #[default]
     Lines,
-    /// A cubic Hermite curve through the knots ([`knot_interpolation`]).
+    /// A cubic Hermite curve through the knots ([`knot_interpolation`]): the default since
+    /// session 80 (BENCHMARKS.md, issue 10).
+    #[default]
     Cubic,
 }
 
@@ -1209,7 +1210,7 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
         energy_kj,
         h,
         held_levels,
-        yield_curve: YieldCurve::Lines,
+        yield_curve: YieldCurve::default(),
         knots,
         knot_smoothing: [0.0; 3],
         anti_alias: None,
