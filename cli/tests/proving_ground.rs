@@ -388,7 +388,8 @@ fn a_compliance_whose_gain_is_sharp_passes_the_structure_rule() {
 /// candidates are fitted again from the baseline's better parameters
 /// (`judged_from_current_optimum`): the gas takes the pooled held-out RMS down by a quarter
 /// (42.8 → 31.6 N with the yield force on the default cubic curve between the knots; by
-/// half on straight lines, before session 80), and nothing else is found. The typical-block reading keeps its unit test
+/// half on straight lines, before session 80), and nothing else is found. The
+/// typical-block reading keeps its unit test
 /// (`one_extrapolated_block_neither_hides_a_broad_gain_nor_passes_as_one`).
 #[test]
 fn a_gas_spring_fitted_from_the_baselines_optimum_predicts_the_held_out_blocks() {
