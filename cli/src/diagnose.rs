@@ -55,10 +55,11 @@ pub struct DiagnoseArgs {
     #[arg(long, value_name = "NAME", default_value = "calibrated", value_parser = parse_selector)]
     pub selector: Selector,
     /// How the yield force is interpolated in current between the knots of a record whose
-    /// current varies continuously: `lines` (straight lines) or `cubic` (a cubic Hermite
-    /// curve through the knots; held levels are always joined by lines). docs/diagnose.md
-    /// §2 compares them on the proving ground.
-    #[arg(long, value_name = "CURVE", default_value = "cubic", value_parser = parse_yield_curve)]
+    /// current varies continuously: `lines` (straight lines), `cubic` (a cubic Hermite
+    /// curve through the knots) or `auto` (the baseline settled on both, the one that fits
+    /// the fitting blocks better kept). Held levels are always joined by lines.
+    /// docs/diagnose.md §2 compares them on the proving ground.
+    #[arg(long, value_name = "CURVE", default_value = "auto", value_parser = parse_yield_curve)]
     pub yield_curve: ::diagnose::YieldCurve,
     /// Bootstrap replicates per selection round (`calibrated`).
     #[arg(long, value_name = "N", default_value_t = ::diagnose::Calibration::default().replicates)]
@@ -90,7 +91,7 @@ fn parse_selector(s: &str) -> Result<Selector, String> {
 
 fn parse_yield_curve(s: &str) -> Result<::diagnose::YieldCurve, String> {
     ::diagnose::YieldCurve::parse(s)
-        .ok_or_else(|| format!("unknown yield curve '{s}' (expected one of: lines, cubic)"))
+        .ok_or_else(|| format!("unknown yield curve '{s}' (expected one of: lines, cubic, auto)"))
 }
 
 /// A one-line progress bar on stderr, drawn only when stderr is a terminal.

@@ -527,10 +527,13 @@ impl KnotInterpolation {
 pub enum YieldCurve {
     /// Straight lines between knots.
     Lines,
-    /// A cubic Hermite curve through the knots ([`knot_interpolation`]): the default since
-    /// session 80 (BENCHMARKS.md, issue 10).
-    #[default]
+    /// A cubic Hermite curve through the knots ([`knot_interpolation`]).
     Cubic,
+    /// The option's default: the baseline is settled on both and the one that fits the
+    /// fitting blocks better is kept (`select::settled_baseline_on_its_curve`); never the
+    /// curve of a [`Prepared`] record, which the model reads as lines.
+    #[default]
+    Auto,
 }
 
 impl YieldCurve {
@@ -539,11 +542,12 @@ impl YieldCurve {
         match self {
             YieldCurve::Lines => "lines",
             YieldCurve::Cubic => "cubic",
+            YieldCurve::Auto => "auto",
         }
     }
     /// The curve of a name ([`YieldCurve::name`]).
     pub fn parse(s: &str) -> Option<Self> {
-        [YieldCurve::Lines, YieldCurve::Cubic]
+        [YieldCurve::Lines, YieldCurve::Cubic, YieldCurve::Auto]
             .into_iter()
             .find(|x| x.name() == s)
     }
@@ -1210,7 +1214,7 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
         energy_kj,
         h,
         held_levels,
-        yield_curve: YieldCurve::default(),
+        yield_curve: YieldCurve::Cubic,
         knots,
         knot_smoothing: [0.0; 3],
         anti_alias: None,

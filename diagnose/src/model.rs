@@ -5,8 +5,8 @@
 //! measurement model of [`crate::measure`]):
 //! `F = F_leak(v; F_y(I), c(I), v_ε) + F_off`, with `F_y` and `c` free at each current knot
 //! and interpolated linearly in current between knots (`F_y`, on a grid of knots over a
-//! continuous current, by a cubic Hermite curve: [`crate::data::YieldCurve::Cubic`], the
-//! default), so any τ0(I) and μ(I) fit; `v_ε`
+//! continuous current, by a cubic Hermite curve under [`crate::data::YieldCurve::Cubic`],
+//! which `Auto` keeps where it fits better), so any τ0(I) and μ(I) fit; `v_ε`
 //! the pre-yield leak velocity (at least √(π/2) σ_v̂: the expected force under the rebuilt
 //! velocity's error; fitted above that, so a bi-viscous or regularised fluid, or a force
 //! filter that smears the reversal, is part of the baseline); `F_off` a force-sensor

@@ -365,6 +365,9 @@ pub struct Report {
     /// How the yield force was interpolated between the knots of a grid (`lines`,
     /// `cubic`; held levels are always joined by lines).
     pub yield_curve: String,
+    /// Under `--yield-curve auto` on a grid of knots: the settled baseline's fitting RMS
+    /// \[N\] on each curve (`cubic`, `lines`); the lower one's curve is `yield_curve`.
+    pub yield_curve_fits: Option<BTreeMap<String, f64>>,
     /// What the measurement model found: noise levels, rebuilt velocity, stuck stretches.
     pub measurement: crate::measure::MeasurementSummary,
     /// The split.
