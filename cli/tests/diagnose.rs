@@ -486,4 +486,16 @@ fn continuous_current_gets_binned_loop_plots() {
         );
         assert!(text.contains("final model"), "{svg}");
     }
+    // A grid of knots: the default settled the baseline on both yield curves, and the
+    // report says which it kept and what each fitted.
+    let report = fs::read_to_string(dir.path("r.md")).unwrap();
+    let line = report
+        .lines()
+        .find(|l| l.starts_with("The yield force follows"))
+        .unwrap_or_else(|| panic!("no yield-curve line in the report:\n{report}"));
+    assert!(
+        (line.contains("follows a cubic curve") && line.contains("on straight lines at"))
+            || (line.contains("follows straight lines") && line.contains("on a cubic curve at")),
+        "{line}"
+    );
 }

@@ -698,6 +698,36 @@ fn write_measurement(s: &mut String, r: &Report) {
 
 /// The baseline's and the final model's fit, where the baseline misses and the residual
 /// by stroke phase.
+/// Which curve the yield force follows between the knots of a grid, and why, when
+/// `--yield-curve auto` settled the baseline on both.
+fn write_yield_curve(s: &mut String, r: &Report) {
+    use std::fmt::Write;
+    let Some(fits) = &r.yield_curve_fits else {
+        return;
+    };
+    fn name(c: &str) -> &str {
+        match c {
+            "cubic" => "a cubic curve",
+            "lines" => "straight lines",
+            other => other,
+        }
+    }
+    let others: Vec<String> = fits
+        .iter()
+        .filter(|(c, _)| **c != r.yield_curve)
+        .map(|(c, v)| format!("on {} at {v:.2} N", name(c)))
+        .collect();
+    let _ = writeln!(
+        s,
+        "\nThe yield force follows {} between the current knots, on which the settled \
+         baseline fits the fitting blocks at {:.2} N; {} (`--yield-curve auto` keeps the \
+         lower).",
+        name(&r.yield_curve),
+        fits.get(&r.yield_curve).copied().unwrap_or(f64::NAN),
+        others.join(", ")
+    );
+}
+
 fn write_fit(s: &mut String, r: &Report) {
     use std::fmt::Write;
     let _ = writeln!(s, "\n## Fit\n");
@@ -713,6 +743,7 @@ fn write_fit(s: &mut String, r: &Report) {
             m.model, m.parameters, m.train_rmse_n, m.holdout_rmse_n
         );
     }
+    write_yield_curve(s, r);
     let _ = writeln!(s, "\n## Where the baseline misses\n");
     if r.mismatch.is_empty() {
         let _ = writeln!(s, "No region holds more than its share of the residual.\n");
