@@ -696,8 +696,6 @@ fn write_measurement(s: &mut String, r: &Report) {
     );
 }
 
-/// The baseline's and the final model's fit, where the baseline misses and the residual
-/// by stroke phase.
 /// Which curve the yield force follows between the knots of a grid, and why, when
 /// `--yield-curve auto` settled the baseline on both.
 fn write_yield_curve(s: &mut String, r: &Report) {
@@ -728,6 +726,8 @@ fn write_yield_curve(s: &mut String, r: &Report) {
     );
 }
 
+/// The baseline's and the final model's fit, where the baseline misses and the residual
+/// by stroke phase.
 fn write_fit(s: &mut String, r: &Report) {
     use std::fmt::Write;
     let _ = writeln!(s, "\n## Fit\n");

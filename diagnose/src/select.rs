@@ -1916,13 +1916,18 @@ fn settled_baseline_on_its_curve(
     let mut on_lines = d.clone();
     on_lines.yield_curve = YieldCurve::Lines;
     d.yield_curve = YieldCurve::Cubic;
-    let cubic = settled_baseline(d, opts);
-    let lines = settled_baseline(&mut on_lines, opts);
+    // The two are independent: settled side by side.
+    let (cubic, lines) = std::thread::scope(|scope| {
+        let lines = scope.spawn(|| settled_baseline(&mut on_lines, opts));
+        let cubic = settled_baseline(d, opts);
+        (cubic, lines.join().expect("the baseline on lines"))
+    });
+    let (on_cubic_rmse, on_lines_rmse) = (cubic.0.train_rmse(), lines.0.train_rmse());
     let fits = BTreeMap::from([
-        ("cubic".to_string(), cubic.0.train_rmse()),
-        ("lines".to_string(), lines.0.train_rmse()),
+        ("cubic".to_string(), on_cubic_rmse),
+        ("lines".to_string(), on_lines_rmse),
     ]);
-    if lines.0.train_rmse() < cubic.0.train_rmse() {
+    if on_lines_rmse < on_cubic_rmse {
         *d = on_lines;
         (lines, Some(fits))
     } else {
