@@ -148,6 +148,21 @@ pub struct Prepared {
 }
 
 impl Prepared {
+    /// The middle of the displacement's range: the stroke's centre \[m\].
+    pub fn stroke_centre_m(&self) -> f64 {
+        let (lo, hi) = self
+            .x
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), x| {
+                (l.min(*x), h.max(*x))
+            });
+        if lo.is_finite() {
+            0.5 * (lo + hi)
+        } else {
+            0.0
+        }
+    }
+
     /// The record's peak force \[N\]: the largest |F| over the samples not left out.
     pub fn peak_force(&self) -> f64 {
         self.f

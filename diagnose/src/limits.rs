@@ -151,7 +151,7 @@ fn effect_values(e: Effect, shape: Shape, a: f64) -> Vec<f64> {
     match (e, shape) {
         (Effect::SealFriction, Shape::Presliding(xp)) => vec![a, xp],
         (Effect::SealFriction, _) => vec![a, crate::model::XP_MIN],
-        (Effect::FluidCompressibility, _) => vec![a, 0.0],
+        (Effect::FluidCompressibility, _) => vec![a, 0.0, 0.0, 0.0],
         _ => vec![a],
     }
 }
@@ -200,7 +200,7 @@ fn secant(
 fn threshold(e: Effect, trials: &[Trial], inflate: f64) -> Option<f64> {
     let last = trials.iter().rev().find(|t| t.effect == e.id())?;
     let c = last.evidence.calibration.as_ref()?;
-    let dp = effect_params(e).len() as f64;
+    let dp = crate::model::tested_params(e) as f64;
     let white = stats::chi2_quantile(1.0 - c.alpha, dp);
     Some(if c.replicates > 0 {
         c.threshold.max(white)

@@ -57,6 +57,12 @@ pub struct Layout {
     /// never reach the speeds it shapes, and it took its neighbours' value
     /// ([`hold_unreached_curvature`]).
     pub held_curvature: Vec<usize>,
+    /// Whether the chamber's liquid share and volume change ([`effect_params`] of
+    /// `fluid_compressibility`, its third and fourth) are fitted. A compressibility is
+    /// tested with them held at 0 (an all-air compliance of one volume, two parameters
+    /// against its null) and, once accepted, refitted with them free
+    /// (`select::free_chamber_shape`).
+    pub chamber_shape: bool,
 }
 
 /// The seal friction's step `F_c s`, or the same step following one of the fluid's own
@@ -90,6 +96,17 @@ pub struct ParamInfo {
     pub no_effect: f64,
     /// Sign of the physical direction (+1: must be positive; 0: either).
     pub sign: f64,
+}
+
+/// How many of an effect's parameters its candidate fits when it is tested: all but a
+/// compressibility's chamber shape ([`Layout::chamber_shape`]).
+pub fn tested_params(e: Effect) -> usize {
+    effect_params(e).len()
+        - if e == Effect::FluidCompressibility {
+            2
+        } else {
+            0
+        }
 }
 
 /// Parameters an effect adds.
@@ -140,7 +157,7 @@ pub fn effect_params(e: Effect) -> &'static [ParamInfo] {
         no_effect: 0.0,
         sign: 1.0,
     }];
-    const COMPRESS: [ParamInfo; 2] = [
+    const COMPRESS: [ParamInfo; 4] = [
         ParamInfo {
             name: "chamber_compliance",
             unit: "mm/kN",
@@ -155,6 +172,25 @@ pub fn effect_params(e: Effect) -> &'static [ParamInfo] {
             name: "pressure_stiffening",
             unit: "1/kN",
             scale: 1e3,
+            no_effect: f64::NAN,
+            sign: 0.0,
+        },
+        // The share of the compliance at zero force that does not stiffen: the liquid's
+        // own bulk modulus beside the entrained air's (0 all air, 1 all liquid; without
+        // stiffening it changes nothing).
+        ParamInfo {
+            name: "liquid_share",
+            unit: "1",
+            scale: 1.0,
+            no_effect: f64::NAN,
+            sign: 0.0,
+        },
+        // The relative change of the compliance from the stroke's centre to its end: the
+        // chamber's volume changes with the piston's position (V1 = V10 − A1 x).
+        ParamInfo {
+            name: "volume_change",
+            unit: "1",
+            scale: 1.0,
             no_effect: f64::NAN,
             sign: 0.0,
         },
@@ -211,10 +247,19 @@ impl Layout {
     /// ([`Layout::held_curvature`]).
     pub fn held_parameters(&self) -> impl Iterator<Item = usize> + '_ {
         let (nk, icv) = (self.nk, self.curvature_index());
+        let shape = match self.index(Effect::FluidCompressibility) {
+            Some(k) if !self.chamber_shape => k + 2..k + 4,
+            _ => 0..0,
+        };
         self.held_viscous
             .iter()
             .map(move |k| nk + k)
             .chain(self.held_curvature.iter().map(move |k| icv + k))
+            .chain(shape)
+    }
+    /// Number of parameters the fit moves ([`Layout::len`] less the held ones).
+    pub fn free_len(&self) -> usize {
+        self.len() - self.held_parameters().count()
     }
     /// Number of baseline parameters (knots, offset, leaks, curvature per knot).
     pub fn base_len(&self) -> usize {
@@ -422,6 +467,9 @@ fn evaluate_at(d: &Prepared, inp: &Channels, lay: &Layout, theta: &[f64], jac: b
     let tau = ilag.map(|k| theta[k].max(0.0)).unwrap_or(0.0);
     let comp = icp.map(|k| theta[k].max(0.0)).unwrap_or(0.0);
     let stiffening = icp.map(|k| theta[k + 1]).unwrap_or(0.0);
+    let liquid_share = icp.map(|k| theta[k + 2].clamp(0.0, 1.0)).unwrap_or(0.0);
+    let volume_change = icp.map(|k| theta[k + 3]).unwrap_or(0.0);
+    let (stroke_centre, half_stroke) = (d.stroke_centre_m(), d.half_stroke_m.max(1e-9));
     let mut i_eff = inp.i[0];
     let fy_ref = knot_mean(theta, nk, FrictionScale::Yield);
     let c_ref = knot_mean(theta, nk, FrictionScale::Viscous);
@@ -521,6 +569,9 @@ fn evaluate_at(d: &Prepared, inp: &Channels, lay: &Layout, theta: &[f64], jac: b
             let chamber = Chamber {
                 compliance: comp,
                 stiffening,
+                liquid_share,
+                volume_change,
+                position: ((inp.x[j] - stroke_centre) / half_stroke).clamp(-1.0, 1.0),
             };
             let (f_new, dwf, dwfy, dwc, dwe) =
                 solve_compliance(fl_prev, v, h, chamber, fy, c, veps);
@@ -528,7 +579,15 @@ fn evaluate_at(d: &Prepared, inp: &Channels, lay: &Layout, theta: &[f64], jac: b
             if jac {
                 // Implicit differentiation of E(F, F₀) + h (w(F) − v) = 0
                 // ([`Chamber::charge`]): ∂F = (−∂E/∂F₀ ∂F₀ − h ∂w − ∂E/∂θ) / (∂E/∂F + h ∂w/∂F).
-                let (_, de_df, de_df0, de_dc, de_dg) = chamber.charge(f_new, fl_prev);
+                let Charge {
+                    df: de_df,
+                    df0: de_df0,
+                    dc: de_dc,
+                    dg: de_dg,
+                    ds: de_ds,
+                    dl: de_dl,
+                    ..
+                } = chamber.charge(f_new, fl_prev);
                 let den = de_df + h * dwf;
                 for q in 0..p {
                     s_new[q] = -de_df0 * s_prev[q];
@@ -544,6 +603,8 @@ fn evaluate_at(d: &Prepared, inp: &Channels, lay: &Layout, theta: &[f64], jac: b
                 if let Some(ci) = icp {
                     s_new[ci] -= de_dc;
                     s_new[ci + 1] -= de_dg;
+                    s_new[ci + 2] -= de_ds;
+                    s_new[ci + 3] -= de_dl;
                 }
                 for q in 0..p {
                     s_new[q] /= den;
@@ -672,15 +733,36 @@ fn evaluate_at(d: &Prepared, inp: &Channels, lay: &Layout, theta: &[f64], jac: b
 /// near vapour pressure).
 const STIFFENING_FLOOR: f64 = 0.05;
 
-/// The chamber between piston and gap: compliance `C(F) = C / (1 + γ F)²` at fluid force
-/// F. With entrained air of polytropic index n the compliance of a chamber at absolute
-/// pressure p falls as p^{−(1+1/n)}, and p = p₀ + F/A₁: for n ≈ 1, γ = 1/(p₀ A₁)
-/// (PHYSICS.md, Graczykowski & Pawłowski's chamber equation `(V/K) ṗ = A v − Q` with
-/// K rising with p). γ = 0 is a constant compliance.
+/// The chamber between piston and gap: compliance
+/// `C(F, x) = C (1 + λ ξ) (s + (1 − s) / (1 + γ F)²)` at fluid force F and piston position
+/// ξ (−1 … 1 from one end of the stroke to the other). With entrained air of polytropic
+/// index n the air's compliance at absolute pressure p falls as p^{−(1+1/n)}, and
+/// p = p₀ + F/A₁: for n ≈ 1, γ = 1/(p₀ A₁) (PHYSICS.md, Graczykowski & Pawłowski's
+/// chamber equation `(V/K) ṗ = A v − Q` with K rising with p); the liquid's own bulk
+/// modulus adds a compliance that does not stiffen (share s at zero force); and the
+/// chamber's volume V₁ = V₁₀ − A₁ x, which every compliance is proportional to, changes
+/// along the stroke (λ = A₁ x̂ / V₁₀ at half stroke x̂). γ = 0 is a constant compliance in
+/// force, λ = 0 in position.
 #[derive(Debug, Clone, Copy)]
 struct Chamber {
     compliance: f64,
     stiffening: f64,
+    liquid_share: f64,
+    volume_change: f64,
+    position: f64,
+}
+
+/// [`Chamber::charge`]: the fluid volume the chamber takes up (per piston area) and its
+/// derivatives in the force F, the start force F₀ and the parameters C, γ, s, λ.
+#[derive(Debug, Clone, Copy)]
+struct Charge {
+    e: f64,
+    df: f64,
+    df0: f64,
+    dc: f64,
+    dg: f64,
+    ds: f64,
+    dl: f64,
 }
 
 impl Chamber {
@@ -695,19 +777,50 @@ impl Chamber {
         }
     }
 
+    /// `1 + λ ξ`: the chamber's volume at this position over its volume at the stroke's
+    /// centre (at least 0.1).
+    fn volume_ratio(&self) -> f64 {
+        (1.0 + self.volume_change * self.position).max(0.1)
+    }
+
+    /// The compliance at force F, `∂E/∂F`.
+    fn local(&self, f: f64) -> f64 {
+        let (a, ..) = self.pressure_ratio(f);
+        let s = self.liquid_share;
+        self.compliance * self.volume_ratio() * (s + (1.0 - s) / (a * a))
+    }
+
     /// The fluid volume the chamber takes up (per piston area) as its force goes from F₀
-    /// to F, `E = ∫ C(F) dF = C (F − F₀) / ((1 + γF)(1 + γF₀))` (exact for the law above),
-    /// and ∂E/∂F, ∂E/∂F₀, ∂E/∂C, ∂E/∂γ.
-    fn charge(&self, f: f64, f0: f64) -> (f64, f64, f64, f64, f64) {
+    /// to F, `E = ∫ C(F, x) dF = C (1 + λ ξ) (s (F − F₀) + (1 − s) (F − F₀) / ((1 + γF)
+    /// (1 + γF₀)))` (exact for the law above at the step's position), and its derivatives.
+    fn charge(&self, f: f64, f0: f64) -> Charge {
         let c = self.compliance;
+        let s = self.liquid_share;
+        let pv = self.volume_ratio();
         let (a, da, ga) = self.pressure_ratio(f);
         let (a0, da0, ga0) = self.pressure_ratio(f0);
-        let e = c * (f - f0) / (a * a0);
-        let de_df = c / (a * a0) - e * da / a;
-        let de_df0 = -c / (a * a0) - e * da0 / a0;
-        let de_dc = (f - f0) / (a * a0);
-        let de_dg = -e * (ga / a + ga0 / a0);
-        (e, de_df, de_df0, de_dc, de_dg)
+        let delta = f - f0;
+        // The air's share per unit compliance and its derivatives.
+        let air = delta / (a * a0);
+        let air_df = 1.0 / (a * a0) - air * da / a;
+        let air_df0 = -1.0 / (a * a0) - air * da0 / a0;
+        let air_dg = -air * (ga / a + ga0 / a0);
+        let b = s * delta + (1.0 - s) * air;
+        let cp = c * pv;
+        let dpv = if 1.0 + self.volume_change * self.position > 0.1 {
+            self.position
+        } else {
+            0.0
+        };
+        Charge {
+            e: cp * b,
+            df: cp * (s + (1.0 - s) * air_df),
+            df0: cp * (-s + (1.0 - s) * air_df0),
+            dc: pv * b,
+            dg: cp * (1.0 - s) * air_dg,
+            ds: cp * (delta - air),
+            dl: c * dpv * b,
+        }
     }
 }
 
@@ -726,13 +839,13 @@ fn solve_compliance(
 ) -> (f64, f64, f64, f64, f64) {
     let g = |f: f64| {
         let (w, dw, _, _, _) = bingham::flow_velocity_leaky(f, fy, c, veps);
-        let (e, de, ..) = chamber.charge(f, f0);
+        let Charge { e, df: de, .. } = chamber.charge(f, f0);
         (e + h * (w - v), de + h * dw)
     };
     let (eq, _, _, _) = bingham::force_leaky(v, fy, c, veps);
     let (mut lo, mut hi) = if eq < f0 { (eq, f0) } else { (f0, eq) };
     // Blocked (no leak) guess.
-    let local = chamber.compliance / chamber.pressure_ratio(f0).0.powi(2);
+    let local = chamber.local(f0);
     let mut x = (f0 + h * v / local).clamp(lo, hi);
     for _ in 0..60 {
         let (r, dr) = g(x);
@@ -832,10 +945,14 @@ fn clamp_bounds(d: &Prepared, lay: &Layout, theta: &mut [f64]) {
             theta[k] = theta[k].max(0.0);
         }
     }
-    // The pressure stiffening keeps 1 + γ F above 0.1 at the record's peak force.
+    // The pressure stiffening keeps 1 + γ F above 0.1 at the record's peak force; the
+    // liquid share lies in 0…1; the volume change keeps the chamber at a tenth of its
+    // mid-stroke volume or more.
     if let Some(k) = lay.index(Effect::FluidCompressibility) {
         let g = 0.9 / d.peak_force().max(1e-9);
         theta[k + 1] = theta[k + 1].clamp(-g, g);
+        theta[k + 2] = theta[k + 2].clamp(0.0, 1.0);
+        theta[k + 3] = theta[k + 3].clamp(-0.9, 0.9);
     }
     // The presliding displacement stays between 0.1 µm and XP_MAX (or half the stroke).
     if let Some(k) = lay.index(Effect::SealFriction) {
@@ -1753,6 +1870,7 @@ fn baseline_start(d: &Prepared) -> (Layout, Vec<f64>) {
             friction_scale: FrictionScale::Constant,
             held_viscous: Vec::new(),
             held_curvature: Vec::new(),
+            chamber_shape: false,
         },
         theta,
     )
@@ -1786,6 +1904,7 @@ mod tests {
             friction_scale: FrictionScale::Constant,
             held_viscous: Vec::new(),
             held_curvature: Vec::new(),
+            chamber_shape: false,
         };
         let th = vec![
             250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 0.0, 0.004, 0.0, 0.0, 0.0, 0.0, 0.0,
@@ -1835,6 +1954,7 @@ mod tests {
             friction_scale: FrictionScale::Constant,
             held_viscous: Vec::new(),
             held_curvature: Vec::new(),
+            chamber_shape: false,
         };
         assert_eq!(layout.nk, 1);
         // No leak of its own: each sample's velocity error makes it ([`sample_leak`]).
@@ -1925,6 +2045,7 @@ mod tests {
             friction_scale: FrictionScale::Constant,
             held_viscous: Vec::new(),
             held_curvature: Vec::new(),
+            chamber_shape: false,
         };
         // Knot values linear in current (uneven spacing) cost nothing.
         let line = |a: f64, b: f64| d.knots.iter().map(|i| a + b * i).collect::<Vec<f64>>();
@@ -1990,14 +2111,16 @@ mod tests {
             friction_scale: FrictionScale::Constant,
             held_viscous: Vec::new(),
             held_curvature: Vec::new(),
+            chamber_shape: true,
         };
         // knots' F_y and c, offset, leak, relative leak, yield softness, knots' c₂
         let mut theta = vec![
             250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 12.0, 0.004, 0.05, 0.3, -20.0, 10.0, 30.0,
         ];
-        // compressibility 0.05 mm/kN stiffening 0.3/kN, gas, friction (15 N, 0.2 mm
-        // presliding), thermal, lag 8 ms, inertia (ALL order)
-        theta.extend([5e-8, 3e-4, 800.0, 15.0, 2e-4, 0.05, 0.008, 0.5]);
+        // compressibility 0.05 mm/kN stiffening 0.3/kN, liquid share 0.3, volume change
+        // −0.4, gas, friction (15 N, 0.2 mm presliding), thermal, lag 8 ms, inertia (ALL
+        // order)
+        theta.extend([5e-8, 3e-4, 0.3, -0.4, 800.0, 15.0, 2e-4, 0.05, 0.008, 0.5]);
         assert_eq!(theta.len(), lay.len());
         // The library's friction and the ones scaled by the yield force and the viscosity.
         for scaled in [
@@ -2038,6 +2161,7 @@ mod tests {
             friction_scale: FrictionScale::Constant,
             held_viscous: Vec::new(),
             held_curvature: Vec::new(),
+            chamber_shape: true,
         };
         // A saturating yield force, a rising viscosity and curvature over the knots.
         let mut theta: Vec<f64> = d
@@ -2048,7 +2172,7 @@ mod tests {
         theta.extend(d.knots.iter().map(|i| 800.0 + 300.0 * i));
         theta.extend([12.0, 0.004, 0.05, 0.3]);
         theta.extend(d.knots.iter().map(|i| -20.0 + 40.0 * i * i));
-        theta.extend([5e-8, 3e-4, 800.0, 15.0, 2e-4, 0.05, 0.008, 0.5]);
+        theta.extend([5e-8, 3e-4, 0.3, -0.4, 800.0, 15.0, 2e-4, 0.05, 0.008, 0.5]);
         assert_eq!(theta.len(), lay.len());
         check_jacobian(&d, &lay, &theta);
     }
@@ -2152,7 +2276,7 @@ mod tests {
         let (base, th, _) = bare_baseline(&d);
         let lay = base.with(Effect::FluidCompressibility);
         let mut tc = th.clone();
-        tc.extend([5e-8, 3e-4]);
+        tc.extend([5e-8, 3e-4, 0.2, -0.3]);
         // A trial point's model run, filtered only when taken, is the whole evaluation:
         // the model on the sub-sample grid, force and Jacobian through the filter.
         let (aa, g) = (d.anti_alias.expect("set above"), &d.subgrid);
@@ -2188,7 +2312,7 @@ mod tests {
         let (base, th, f0) = bare_baseline(&d);
         let lay = base.with(Effect::FluidCompressibility);
         let mut tc = th.clone();
-        tc.extend([1e-12, 0.0]);
+        tc.extend([1e-12, 0.0, 0.0, 0.0]);
         let k = lay
             .index(Effect::FluidCompressibility)
             .expect("in the layout");
@@ -2210,6 +2334,9 @@ mod tests {
             let ch = Chamber {
                 compliance: 2e-7,
                 stiffening: g,
+                liquid_share: 0.0,
+                volume_change: 0.0,
+                position: 0.3,
             };
             let (v, h) = (0.05, 0.002);
             let (f, ..) = solve_compliance(0.0, v, h, ch, 1e9, 1e3, 1e-6);
@@ -2220,44 +2347,82 @@ mod tests {
 
     #[test]
     fn the_chamber_charge_is_the_integral_of_its_compliance() {
-        for g in [0.0, 3e-4, -5e-4] {
+        for (g, sh, lam, xi) in [
+            (0.0, 0.0, 0.0, 0.0),
+            (3e-4, 0.0, 0.0, 0.5),
+            (-5e-4, 0.0, 0.0, -0.5),
+            (3e-4, 0.4, 0.3, 0.7),
+            (-5e-4, 0.8, -0.6, 0.9),
+        ] {
             let ch = Chamber {
                 compliance: 2e-7,
                 stiffening: g,
+                liquid_share: sh,
+                volume_change: lam,
+                position: xi,
             };
             let (f0, f) = (-300.0, 1200.0);
-            // Simpson's rule on C / (1 + γF)² over [F₀, F].
+            // Simpson's rule on C (1 + λξ) (s + (1 − s) / (1 + γF)²) over [F₀, F].
             let n = 2000;
             let hq = (f - f0) / n as f64;
-            let cf = |x: f64| 2e-7 / (1.0 + g * x).powi(2);
+            let cf = |x: f64| 2e-7 * (1.0 + lam * xi) * (sh + (1.0 - sh) / (1.0 + g * x).powi(2));
             let mut sum = cf(f0) + cf(f);
             for q in 1..n {
                 sum += if q % 2 == 1 { 4.0 } else { 2.0 } * cf(f0 + q as f64 * hq);
             }
             let quad = sum * hq / 3.0;
-            let (e, de_df, de_df0, de_dc, de_dg) = ch.charge(f, f0);
+            let ch_e = ch.charge(f, f0);
+            let e = ch_e.e;
             assert!((e - quad).abs() < 1e-9 * quad.abs(), "γ {g}: {e} vs {quad}");
-            assert!((de_df - cf(f)).abs() < 1e-12 * cf(f));
-            assert!((de_df0 + cf(f0)).abs() < 1e-12 * cf(f0));
-            assert!((de_dc - e / 2e-7).abs() < 1e-9 * de_dc.abs());
-            let dg = 1e-8;
-            let up = Chamber {
-                stiffening: g + dg,
-                ..ch
+            assert!((ch_e.df - cf(f)).abs() < 1e-12 * cf(f));
+            assert!((ch.local(f) - cf(f)).abs() < 1e-12 * cf(f));
+            assert!((ch_e.df0 + cf(f0)).abs() < 1e-12 * cf(f0));
+            assert!((ch_e.dc - e / 2e-7).abs() < 1e-9 * ch_e.dc.abs());
+            // γ, s and λ against central differences.
+            let fd = |with: &dyn Fn(f64) -> Chamber, x: f64, dx: f64| {
+                (with(x + dx).charge(f, f0).e - with(x - dx).charge(f, f0).e) / (2.0 * dx)
+            };
+            let checks = [
+                (
+                    ch_e.dg,
+                    fd(
+                        &|x| Chamber {
+                            stiffening: x,
+                            ..ch
+                        },
+                        g,
+                        1e-8,
+                    ),
+                ),
+                (
+                    ch_e.ds,
+                    fd(
+                        &|x| Chamber {
+                            liquid_share: x,
+                            ..ch
+                        },
+                        sh,
+                        1e-6,
+                    ),
+                ),
+                (
+                    ch_e.dl,
+                    fd(
+                        &|x| Chamber {
+                            volume_change: x,
+                            ..ch
+                        },
+                        lam,
+                        1e-6,
+                    ),
+                ),
+            ];
+            for (a, b) in checks {
+                assert!(
+                    (a - b).abs() < 1e-5 * b.abs() + 1e-9 * e.abs(),
+                    "{a} vs {b}"
+                );
             }
-            .charge(f, f0)
-            .0;
-            let dn = Chamber {
-                stiffening: g - dg,
-                ..ch
-            }
-            .charge(f, f0)
-            .0;
-            let fd = (up - dn) / (2.0 * dg);
-            assert!(
-                (de_dg - fd).abs() < 1e-5 * fd.abs().max(1e-12),
-                "{de_dg} vs {fd}"
-            );
         }
     }
 }
