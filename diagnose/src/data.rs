@@ -141,6 +141,9 @@ pub struct Prepared {
     pub velocity_scale: f64,
     /// Half the displacement's range \[m\] (the stroke amplitude of a symmetric record).
     pub half_stroke_m: f64,
+    /// The middle of the displacement's range \[m\]: the stroke's centre, where a
+    /// chamber's volume is its mid-stroke volume (`model::Chamber`).
+    pub stroke_centre_m: f64,
     /// What the measurement model found.
     pub measurement: crate::measure::MeasurementSummary,
     /// How the data were split.
@@ -148,21 +151,6 @@ pub struct Prepared {
 }
 
 impl Prepared {
-    /// The middle of the displacement's range: the stroke's centre \[m\].
-    pub fn stroke_centre_m(&self) -> f64 {
-        let (lo, hi) = self
-            .x
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), x| {
-                (l.min(*x), h.max(*x))
-            });
-        if lo.is_finite() {
-            0.5 * (lo + hi)
-        } else {
-            0.0
-        }
-    }
-
     /// The record's peak force \[N\]: the largest |F| over the samples not left out.
     pub fn peak_force(&self) -> f64 {
         self.f
@@ -1147,10 +1135,12 @@ fn leave_out_unscored(
     )
 }
 
-/// Half the displacement's range: the stroke amplitude.
-fn half_stroke(x: &[f64]) -> f64 {
-    0.5 * (x.iter().copied().fold(f64::NEG_INFINITY, f64::max)
-        - x.iter().copied().fold(f64::INFINITY, f64::min))
+/// The middle of the displacement's range and half the range: the stroke's centre and
+/// amplitude.
+fn stroke_range(x: &[f64]) -> (f64, f64) {
+    let hi = x.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let lo = x.iter().copied().fold(f64::INFINITY, f64::min);
+    (0.5 * (lo + hi), 0.5 * (hi - lo))
 }
 
 /// Check and prepare the signals: validate, apply the measurement model, find strokes,
@@ -1216,7 +1206,7 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
     );
     let leak_velocity_min = crate::measure::LEAK_PER_SIGMA * m.summary.rebuilt_velocity_sigma_m_s;
     let friction_velocity = (0.01 * vpeak).max(leak_velocity_min);
-    let half_stroke_m = half_stroke(&x);
+    let (stroke_centre_m, half_stroke_m) = stroke_range(&x);
     let mut prepared = Prepared {
         t,
         x,
@@ -1250,6 +1240,7 @@ pub fn prepare(s: &Signals) -> Result<Prepared, DataError> {
         friction_velocity,
         velocity_scale: vpeak,
         half_stroke_m,
+        stroke_centre_m,
         measurement: m.summary,
         split_method,
     };

@@ -98,12 +98,16 @@ pub struct ParamInfo {
     pub sign: f64,
 }
 
+/// Where a compressibility's chamber shape (liquid share, volume change) sits among its
+/// parameters ([`Layout::chamber_shape`]).
+pub const CHAMBER_SHAPE: std::ops::Range<usize> = 2..4;
+
 /// How many of an effect's parameters its candidate fits when it is tested: all but a
-/// compressibility's chamber shape ([`Layout::chamber_shape`]).
+/// compressibility's chamber shape ([`CHAMBER_SHAPE`]).
 pub fn tested_params(e: Effect) -> usize {
     effect_params(e).len()
         - if e == Effect::FluidCompressibility {
-            2
+            CHAMBER_SHAPE.len()
         } else {
             0
         }
@@ -248,7 +252,7 @@ impl Layout {
     pub fn held_parameters(&self) -> impl Iterator<Item = usize> + '_ {
         let (nk, icv) = (self.nk, self.curvature_index());
         let shape = match self.index(Effect::FluidCompressibility) {
-            Some(k) if !self.chamber_shape => k + 2..k + 4,
+            Some(k) if !self.chamber_shape => k + CHAMBER_SHAPE.start..k + CHAMBER_SHAPE.end,
             _ => 0..0,
         };
         self.held_viscous
@@ -469,7 +473,7 @@ fn evaluate_at(d: &Prepared, inp: &Channels, lay: &Layout, theta: &[f64], jac: b
     let stiffening = icp.map(|k| theta[k + 1]).unwrap_or(0.0);
     let liquid_share = icp.map(|k| theta[k + 2].clamp(0.0, 1.0)).unwrap_or(0.0);
     let volume_change = icp.map(|k| theta[k + 3]).unwrap_or(0.0);
-    let (stroke_centre, half_stroke) = (d.stroke_centre_m(), d.half_stroke_m.max(1e-9));
+    let (stroke_centre, half_stroke) = (d.stroke_centre_m, d.half_stroke_m.max(1e-9));
     let mut i_eff = inp.i[0];
     let fy_ref = knot_mean(theta, nk, FrictionScale::Yield);
     let c_ref = knot_mean(theta, nk, FrictionScale::Viscous);
@@ -778,16 +782,21 @@ impl Chamber {
     }
 
     /// `1 + λ ξ`: the chamber's volume at this position over its volume at the stroke's
-    /// centre (at least 0.1).
-    fn volume_ratio(&self) -> f64 {
-        (1.0 + self.volume_change * self.position).max(0.1)
+    /// centre (at least 0.1), and its derivative in λ (0 on the floor).
+    fn volume_ratio(&self) -> (f64, f64) {
+        let r = 1.0 + self.volume_change * self.position;
+        if r > 0.1 {
+            (r, self.position)
+        } else {
+            (0.1, 0.0)
+        }
     }
 
     /// The compliance at force F, `∂E/∂F`.
     fn local(&self, f: f64) -> f64 {
         let (a, ..) = self.pressure_ratio(f);
         let s = self.liquid_share;
-        self.compliance * self.volume_ratio() * (s + (1.0 - s) / (a * a))
+        self.compliance * self.volume_ratio().0 * (s + (1.0 - s) / (a * a))
     }
 
     /// The fluid volume the chamber takes up (per piston area) as its force goes from F₀
@@ -796,7 +805,7 @@ impl Chamber {
     fn charge(&self, f: f64, f0: f64) -> Charge {
         let c = self.compliance;
         let s = self.liquid_share;
-        let pv = self.volume_ratio();
+        let (pv, dpv) = self.volume_ratio();
         let (a, da, ga) = self.pressure_ratio(f);
         let (a0, da0, ga0) = self.pressure_ratio(f0);
         let delta = f - f0;
@@ -807,11 +816,6 @@ impl Chamber {
         let air_dg = -air * (ga / a + ga0 / a0);
         let b = s * delta + (1.0 - s) * air;
         let cp = c * pv;
-        let dpv = if 1.0 + self.volume_change * self.position > 0.1 {
-            self.position
-        } else {
-            0.0
-        };
         Charge {
             e: cp * b,
             df: cp * (s + (1.0 - s) * air_df),

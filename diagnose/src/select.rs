@@ -2200,7 +2200,8 @@ fn free_chamber_shape(d: &Prepared, fit: &Fit, cal: Option<&CalibratedEvidence>)
     let (kappa, alpha) = cal
         .map(|c| (c.null_scale.unwrap_or(1.0).max(1.0), c.alpha))
         .unwrap_or((1.0, Calibration::default().alpha_per_test(0)));
-    let threshold = kappa * stats::chi2_quantile(1.0 - alpha, 2.0);
+    let shape_params = crate::model::CHAMBER_SHAPE.len() as f64;
+    let threshold = kappa * stats::chi2_quantile(1.0 - alpha, shape_params);
     if calibrate::statistic(fit, &freed) > threshold && freed.holdout_rmse(d) <= fit.holdout_rmse(d)
     {
         freed
