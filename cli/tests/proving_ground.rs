@@ -428,7 +428,12 @@ fn a_chambers_volume_that_follows_the_stroke_is_fitted_and_uncovers_a_friction()
 /// (`judged_from_current_optimum`): the gas takes the pooled held-out RMS down by half, and
 /// nothing else is found (the yield force on straight lines between the knots, which
 /// `--yield-curve auto` keeps here: the baseline fits 21.6 N on them against 22.9 N on the
-/// cubic curve, where the gas takes the held-out RMS down by only a quarter). The
+/// cubic curve, where the gas takes the held-out RMS down by only a quarter). Since
+/// session 83 the knot at 1.291 A, whose fitting samples never reach its 1.68 kN yield
+/// force, is started again from its neighbours' and refitted free
+/// (diagnose::model::hold_unyielded_knots; it fits 21.54 N against 21.62): the baseline
+/// predicts the held-out blocks at 26.4 N instead of 45.5 N, and the gas takes them to
+/// 21.0 N as before (a fifth off the pooled RMS, where it took half). The
 /// typical-block reading keeps its unit test
 /// (`one_extrapolated_block_neither_hides_a_broad_gain_nor_passes_as_one`).
 #[test]
@@ -455,7 +460,7 @@ fn a_gas_spring_fitted_from_the_baselines_optimum_predicts_the_held_out_blocks()
     // in the typical block, with no block hurt more than the typical block gains.
     let (b, a) = (num("holdout_rmse_before_N"), num("holdout_rmse_after_N"));
     assert_eq!(d["yield_curve"], "lines", "{}", d["yield_curve_fits"]);
-    assert!(a < 0.7 * b, "pooled held-out {b:.2} -> {a:.2} N");
+    assert!(a < 0.85 * b, "pooled held-out {b:.2} -> {a:.2} N");
     let (tb, ta) = (
         num("holdout_typical_block_rmse_before_N"),
         num("holdout_typical_block_rmse_after_N"),
@@ -890,6 +895,77 @@ fn a_knot_whose_viscous_coefficient_runs_away_takes_its_neighbours() {
     );
 }
 
+/// A knot whose fitting samples never show the fluid yielding is started again from its
+/// neighbours' yield force (proving-ground null seed 491: a Papanastasiou fluid under
+/// three held currents, 1.00, 1.27 and 1.63 A). Fitted from the record's own start, the
+/// knots at 1.27 and 1.63 A put F_y at 36 and 31 N, under the 1.5 and 1.4 kN their fitting
+/// samples reach, and let the pre-yield leak carry the force: the held-out blocks were
+/// predicted at 2.15 σ_F. Started from their neighbours' (diagnose::model::
+/// hold_unyielded_knots) and refitted free, they settle at 1.79 and 1.92 kN, the fitting
+/// RMS falls (18.9 → 17.6 N, which is what keeps the second start) and the held-out blocks,
+/// which decide nothing here, fall to 1.23 σ_F. The knots are named with the values they
+/// had; the yield force rises with the current as a fluid's does; nothing is found.
+#[test]
+fn a_knot_whose_fitting_samples_never_yield_is_refitted_from_its_neighbours_yield_force() {
+    let (m, d) = generate_null_and_diagnose(491);
+    assert_reports_nothing(491, &d);
+    let sigma_f = m["sigma_F_N"].as_f64().unwrap();
+    let held_out = d["baseline"]["holdout_rmse_N"].as_f64().unwrap();
+    let knots = d["unidentified_knots"].as_array().unwrap();
+    eprintln!("held-out {:.2} σ_F; {knots:#?}", held_out / sigma_f);
+    let currents: Vec<f64> = d["split"]["current_knots_a"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|k| k.as_f64().unwrap())
+        .collect();
+    let fy: Vec<f64> = (0..currents.len())
+        .map(|q| {
+            d["baseline_parameters"][format!("knot{q}_yield_force_N")]
+                .as_f64()
+                .unwrap()
+        })
+        .collect();
+    let restarted: Vec<(f64, f64)> = knots
+        .iter()
+        .filter(|k| {
+            k["why"]
+                .as_str()
+                .unwrap()
+                .contains("not fixed by its fitting samples")
+        })
+        .map(|k| {
+            (
+                k["current_a"].as_f64().unwrap(),
+                k["yield_force_n"].as_f64().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(restarted.len(), 2, "{knots:#?}");
+    for (current, before) in restarted {
+        let q = currents
+            .iter()
+            .position(|c| (c - current).abs() < 1e-9)
+            .expect("a knot of the split");
+        assert!(
+            q > 0 && before < 0.1 * fy[q],
+            "the {current:.3} A knot had {before:.0} N and has {:.0} N",
+            fy[q]
+        );
+    }
+    for q in 1..fy.len() {
+        assert!(
+            currents[q] > currents[q - 1] && fy[q] >= fy[q - 1],
+            "yield force falls with the current: {currents:?} {fy:?}"
+        );
+    }
+    assert!(
+        held_out < 1.5 * sigma_f,
+        "baseline held-out {:.2} σ_F (2.15 from the record's own start)",
+        held_out / sigma_f
+    );
+}
+
 /// The yield force between the knots of a grid on the curve that fits it (`--yield-curve
 /// auto`, the default since session 80): the baseline is settled on the cubic curve and on
 /// straight lines, and the lower fitting RMS is kept. Two validation nulls of the
@@ -899,13 +975,17 @@ fn a_knot_whose_viscous_coefficient_runs_away_takes_its_neighbours() {
 ///   6.2 σ_F; the curve fits better (4.32 N against 4.42) and predicts them at 1.38 σ_F;
 /// - seed 440 (bi-viscous, ratio 136, 500 Hz random strokes): on the curve the baseline
 ///   ended in another leak basin, fitting at 20.2 N against 12.9 N on lines, and predicted
-///   the held-out blocks at 3.32 σ_F against 1.33.
+///   the held-out blocks at 3.32 σ_F against 1.33. Since session 83 the curve's knots whose
+///   fitting samples never reach their yield force are started again from their
+///   neighbours' (diagnose::model::hold_unyielded_knots): it fits at 14.8 N and predicts
+///   at 1.39 σ_F, still behind the lines.
 ///
 /// Each default run names the curve it kept and both fitting RMS values, reports nothing,
-/// and predicts the held-out blocks under 2 σ_F and under half what the other curve does.
+/// and predicts the held-out blocks under 2 σ_F and better than the other curve does
+/// (314: under half).
 #[test]
 fn a_random_currents_yield_force_follows_the_curve_that_fits_between_the_knots() {
-    for (seed, kept, other) in [(314, "cubic", "lines"), (440, "lines", "cubic")] {
+    for (seed, kept, other, share) in [(314, "cubic", "lines", 0.5), (440, "lines", "cubic", 1.0)] {
         let (m, d) = generate_null_and_diagnose(seed);
         let (_, alt, _) = generate_and_diagnose_as(seed, false, &["--yield-curve", other]);
         assert_eq!(
@@ -941,7 +1021,7 @@ fn a_random_currents_yield_force_follows_the_curve_that_fits_between_the_knots()
             by_default / sigma_f
         );
         assert!(
-            by_default < 0.5 * by_other,
+            by_default < share * by_other,
             "seed {seed}: {kept} {by_default:.1} N against {other} {by_other:.1} N"
         );
     }

@@ -608,6 +608,34 @@ fn held_knots_named(d: &Prepared, before: &Fit, held: &Fit) -> Vec<UnidentifiedK
         .collect()
 }
 
+/// The knots whose yield force `held` held ([`crate::model::hold_unyielded_knots`]) on
+/// the way to `refitted` (the same knots free again, from `held`): the yield force each ran
+/// to in `before`, the one it was started from and the one it was refitted to.
+fn unyielded_knots_named(
+    d: &Prepared,
+    before: &Fit,
+    held: &Fit,
+    refitted: &Fit,
+) -> Vec<UnidentifiedKnot> {
+    let nk = held.layout.nk;
+    let reach = crate::model::knot_force_reach(d, before.theta[before.layout.offset_index()]);
+    held.layout
+        .held_yield
+        .iter()
+        .map(|&k| UnidentifiedKnot {
+            current_a: d.knots[k],
+            yield_force_n: before.theta[k],
+            viscous_n_s_m: refitted.theta[nk + k],
+            why: format!(
+                "its yield force of {:.4e} N is not fixed by its fitting samples, which \
+                 reach {:.0} N (the fluid does not yield there over them, or a lower \
+                 current shows more); refitted to {:.0} N from {:.0} N, its neighbours'",
+                before.theta[k], reach[k], refitted.theta[k], held.theta[k]
+            ),
+        })
+        .collect()
+}
+
 /// The knots whose speed curvature `held` holds at their neighbours'
 /// ([`crate::model::hold_unreached_curvature`]), with the speed their strokes reach and the
 /// curvature each was given (`reach` the one the hold was decided on).
@@ -1880,6 +1908,19 @@ fn settled_baseline(d: &mut Prepared, opts: &Options) -> Settled {
     if let Some(held) = crate::model::hold_unidentified_viscous(d, &base) {
         held_knots = held_knots_named(d, &base, &held);
         base = held;
+    }
+    // A knot whose fitting samples never reach its yield force is started from its
+    // neighbours' (when, held there, it predicts no worse) and refitted free, all knots
+    // with it: a second start in a flat valley, kept when it fits the fitting blocks no
+    // worse; the knots are listed as unidentified, with what was done.
+    if let Some(held) = crate::model::hold_unyielded_knots(d, &base) {
+        let mut lay = held.layout.clone();
+        lay.held_yield.clear();
+        let free = fit(d, &lay, &held.theta);
+        if free.train_rmse() <= base.train_rmse() {
+            held_knots.extend(unyielded_knots_named(d, &base, &held, &free));
+            base = free;
+        }
     }
     // A knot whose fitting strokes stay slow takes its neighbours' speed curvature (kept
     // when it predicts no worse).
