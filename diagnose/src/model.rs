@@ -1822,6 +1822,85 @@ pub fn hold_unreached_curvature(d: &Prepared, base: &Fit, reach: &KnotReach) -> 
     refit_if_no_worse(d, base, &lay, &theta)
 }
 
+/// How far above the other knots' median viscous coefficient a knot's c must stand for
+/// [`hold_outlier_viscous`] to start it again.
+pub const OUTLIER_VISCOUS_RATIO: f64 = 4.0;
+
+/// How far above the other knots' median |c₂| a knot's speed curvature must stand (and
+/// above [`OUTLIER_CURVATURE_SHARE`] of its own F_y) for [`hold_outlier_viscous`] to start
+/// it again.
+pub const OUTLIER_CURVATURE_RATIO: f64 = 10.0;
+
+/// Share of its yield force a knot's |c₂| must pass ([`hold_outlier_viscous`]).
+pub const OUTLIER_CURVATURE_SHARE: f64 = 0.5;
+
+/// Knots (of three or more) whose viscous coefficient c and speed curvature c₂ both stand
+/// apart from the other knots' (c over [`OUTLIER_VISCOUS_RATIO`] times their median, |c₂|
+/// over [`OUTLIER_CURVATURE_RATIO`] times theirs and over [`OUTLIER_CURVATURE_SHARE`] of
+/// the knot's F_y), and the baseline refitted with those held at their neighbours' (c
+/// log-linear and c₂ linear in current between the nearest knots that do not stand apart,
+/// the nearest one's beyond them). Over a narrow band of speeds a large c and a large
+/// negative c₂ trade against each other (PHYSICS.md's viscous term and the speed
+/// curvature of §2 of docs/diagnose.md): the pair fits the knot's fitting strokes and
+/// misses a faster held-out stroke at that current. Proving-ground seed 402 (a thermal
+/// softening under 10 held currents): the 0.736 A knot took c = 5.2 kN s/m beside
+/// 0.6–0.7 kN s/m at every other knot and c₂ = −10.8 kN, and its two held-out blocks were
+/// predicted at 381 and 423 N RMS against 16–20 N elsewhere (baseline 18 σ_F). Returned
+/// when it predicts the held-out blocks no worse than `base`; like
+/// [`hold_unyielded_knots`] it is a start: the caller refits it free and keeps what fits
+/// the fitting blocks no worse. `None` when no knot stands apart, or the held fit
+/// predicts worse.
+pub fn hold_outlier_viscous(d: &Prepared, base: &Fit) -> Option<Fit> {
+    let nk = base.layout.nk;
+    if nk < 3 {
+        return None;
+    }
+    let icv = base.layout.curvature_index();
+    let c = |k: usize| base.theta[nk + k];
+    let c2 = |k: usize| base.theta[icv + k];
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let apart = |k: usize| {
+        let others: Vec<usize> = (0..nk).filter(|&q| q != k).collect();
+        let mc = median(others.iter().map(|&q| c(q)).collect());
+        let mc2 = median(others.iter().map(|&q| c2(q).abs()).collect());
+        c(k) > OUTLIER_VISCOUS_RATIO * mc
+            && c2(k).abs() > OUTLIER_CURVATURE_RATIO * mc2
+            && c2(k).abs() > OUTLIER_CURVATURE_SHARE * base.theta[k]
+    };
+    let out: Vec<usize> = (0..nk).filter(|&k| apart(k)).collect();
+    let donors: Vec<usize> = (0..nk).filter(|&k| !apart(k)).collect();
+    if out.is_empty() || donors.is_empty() {
+        return None;
+    }
+    let mut theta = base.theta.clone();
+    for &k in &out {
+        let (vc, vc2) = match neighbours(&d.knots, &donors, k) {
+            Neighbours::Between(a, b, w) => (
+                ((1.0 - w) * c(a).ln() + w * c(b).ln()).exp(),
+                (1.0 - w) * c2(a) + w * c2(b),
+            ),
+            Neighbours::Nearest(a) => (c(a), c2(a)),
+        };
+        theta[nk + k] = vc;
+        theta[icv + k] = vc2;
+    }
+    let mut lay = base.layout.clone();
+    for &k in &out {
+        if !lay.held_viscous.contains(&k) {
+            lay.held_viscous.push(k);
+        }
+        if !lay.held_curvature.contains(&k) {
+            lay.held_curvature.push(k);
+        }
+    }
+    lay.held_viscous.sort_unstable();
+    lay.held_curvature.sort_unstable();
+    refit_if_no_worse(d, base, &lay, &theta)
+}
+
 /// Share of a knot's yield force that the force of its fitting samples must reach for the
 /// yield force to count as identified ([`hold_unyielded_knots`]).
 pub const YIELD_REACH: f64 = 2.0 / 3.0;

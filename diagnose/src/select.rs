@@ -1922,6 +1922,44 @@ fn settled_baseline(d: &mut Prepared, opts: &Options) -> Settled {
             base = free;
         }
     }
+    // A knot whose viscous coefficient and speed curvature both stand apart from the other
+    // knots' is started from its neighbours' (when, held there, it predicts no worse) and
+    // refitted free: kept when it fits the fitting blocks no worse, and listed.
+    if let Some(held) = crate::model::hold_outlier_viscous(d, &base) {
+        let (nk, icv) = (held.layout.nk, held.layout.curvature_index());
+        let started: Vec<usize> = held
+            .layout
+            .held_viscous
+            .iter()
+            .copied()
+            .filter(|k| !base.layout.held_viscous.contains(k))
+            .collect();
+        let mut lay = held.layout.clone();
+        lay.held_viscous.retain(|k| !started.contains(k));
+        lay.held_curvature
+            .retain(|k| !started.contains(k) || base.layout.held_curvature.contains(k));
+        let free = fit(d, &lay, &held.theta);
+        if free.train_rmse() <= base.train_rmse() {
+            held_knots.extend(started.iter().map(|&k| UnidentifiedKnot {
+                current_a: d.knots[k],
+                yield_force_n: free.theta[k],
+                viscous_n_s_m: base.theta[nk + k],
+                why: format!(
+                    "its viscous coefficient of {:.4e} N s/m and speed curvature of {:.4e} N \
+                     stand apart from the other knots' (they trade against each other over \
+                     its fitting strokes); refitted to {:.4e} N s/m and {:.4e} N from its \
+                     neighbours' {:.4e} N s/m and {:.4e} N",
+                    base.theta[nk + k],
+                    base.theta[icv + k],
+                    free.theta[nk + k],
+                    free.theta[icv + k],
+                    held.theta[nk + k],
+                    held.theta[icv + k]
+                ),
+            }));
+            base = free;
+        }
+    }
     // A knot whose fitting strokes stay slow takes its neighbours' speed curvature (kept
     // when it predicts no worse).
     let mut slow_knots = Vec::new();
