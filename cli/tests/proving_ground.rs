@@ -610,6 +610,23 @@ fn hidden_effects(meta: &serde_json::Value) -> Vec<&str> {
     sorted_strings(meta["hidden"].as_array().unwrap().iter())
 }
 
+/// The diagnosis's current knots (`split.current_knots_a`), in A.
+fn current_knots(diagnosis: &serde_json::Value) -> Vec<f64> {
+    diagnosis["split"]["current_knots_a"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|k| k.as_f64().unwrap())
+        .collect()
+}
+
+/// Baseline parameter `knot{q}_{name}` of the diagnosis.
+fn knot_parameter(diagnosis: &serde_json::Value, q: usize, name: &str) -> f64 {
+    diagnosis["baseline_parameters"][format!("knot{q}_{name}")]
+        .as_f64()
+        .unwrap()
+}
+
 /// The effects a diagnosis found, sorted.
 fn found_effects(diagnosis: &serde_json::Value) -> Vec<&str> {
     sorted_strings(
@@ -913,18 +930,9 @@ fn a_knot_whose_fitting_samples_never_yield_is_refitted_from_its_neighbours_yiel
     let held_out = d["baseline"]["holdout_rmse_N"].as_f64().unwrap();
     let knots = d["unidentified_knots"].as_array().unwrap();
     eprintln!("held-out {:.2} σ_F; {knots:#?}", held_out / sigma_f);
-    let currents: Vec<f64> = d["split"]["current_knots_a"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|k| k.as_f64().unwrap())
-        .collect();
+    let currents = current_knots(&d);
     let fy: Vec<f64> = (0..currents.len())
-        .map(|q| {
-            d["baseline_parameters"][format!("knot{q}_yield_force_N")]
-                .as_f64()
-                .unwrap()
-        })
+        .map(|q| knot_parameter(&d, q, "yield_force_N"))
         .collect();
     let restarted: Vec<(f64, f64)> = knots
         .iter()
@@ -1001,16 +1009,11 @@ fn a_knot_whose_viscous_coefficient_and_curvature_stand_apart_is_started_again()
     assert_eq!(apart.len(), 1, "{knots:#?}");
     assert!((apart[0] - 0.736).abs() < 0.005, "{apart:?}");
     // The knot's viscous coefficient is now of its neighbours' size.
-    let currents = d["split"]["current_knots_a"].as_array().unwrap();
-    let q = currents
+    let q = current_knots(&d)
         .iter()
-        .position(|c| (c.as_f64().unwrap() - apart[0]).abs() < 1e-9)
+        .position(|c| (c - apart[0]).abs() < 1e-9)
         .unwrap();
-    let c = |q: usize| {
-        d["baseline_parameters"][format!("knot{q}_viscous_N_s_m")]
-            .as_f64()
-            .unwrap()
-    };
+    let c = |q: usize| knot_parameter(&d, q, "viscous_N_s_m");
     let (below, at, above) = (c(q - 1), c(q), c(q + 1));
     assert!(
         at < 2.0 * below.max(above),
@@ -1101,12 +1104,7 @@ fn a_knot_fitted_on_slow_strokes_takes_its_neighbours_speed_curvature() {
     let held_out = d["baseline"]["holdout_rmse_N"].as_f64().unwrap();
     let slow = d["slow_knots"].as_array().unwrap();
     eprintln!("held-out {:.2} σ_F; {slow:#?}", held_out / sigma_f);
-    let knots: Vec<f64> = d["split"]["current_knots_a"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|k| k.as_f64().unwrap())
-        .collect();
+    let knots = current_knots(&d);
     let field = |k: &serde_json::Value, name: &str| k[name].as_f64().unwrap();
     for k in slow {
         assert!(

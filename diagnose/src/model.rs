@@ -1731,6 +1731,19 @@ fn refit_if_no_worse(d: &Prepared, base: &Fit, lay: &Layout, theta: &[f64]) -> O
     (held.holdout_rmse(d) <= base.holdout_rmse(d)).then_some(held)
 }
 
+/// `held`'s parameters as a second start for `free` (`held`'s layout with the knots it held
+/// let go again), refitted: the refit when it fits the fitting blocks no worse than `base`
+/// (the second starts of [`hold_unyielded_knots`] and [`hold_outlier_viscous`]).
+pub fn second_start_if_fits_no_worse(
+    d: &Prepared,
+    base: &Fit,
+    held: &Fit,
+    free: &Layout,
+) -> Option<Fit> {
+    let refit = fit(d, free, &held.theta);
+    (refit.train_rmse() <= base.train_rmse()).then_some(refit)
+}
+
 /// Share of the speed the record asks of a knot that the knot's fitting samples must
 /// reach for its speed curvature c₂ to count as identified ([`hold_unreached_curvature`]).
 pub const CURVATURE_REACH: f64 = 0.5;

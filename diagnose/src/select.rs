@@ -6,7 +6,10 @@ use twin::Effect;
 
 use crate::calibrate::{self, CalibratedEvidence, Calibration};
 use crate::data::{prepare, DataError, Phase, Prepared, Signals, YieldCurve};
-use crate::model::{effect_params, evaluate, extend, fit, Fit, FitDetail, FrictionScale, Layout};
+use crate::model::{
+    effect_params, evaluate, extend, fit, second_start_if_fits_no_worse, Fit, FitDetail,
+    FrictionScale, Layout,
+};
 use crate::report::*;
 use crate::stats;
 use crate::unexplained::unexplained;
@@ -632,6 +635,39 @@ fn unyielded_knots_named(
                  current shows more); refitted to {:.0} N from {:.0} N, its neighbours'",
                 before.theta[k], reach[k], refitted.theta[k], held.theta[k]
             ),
+        })
+        .collect()
+}
+
+/// The knots `started` whose viscous coefficient and speed curvature `held` held at their
+/// neighbours' ([`crate::model::hold_outlier_viscous`]) on the way to `refitted` (the same
+/// knots free again, from `held`): the values each had in `before`, the ones it was
+/// started from and the ones it was refitted to.
+fn outlier_knots_named(
+    d: &Prepared,
+    before: &Fit,
+    held: &Fit,
+    refitted: &Fit,
+    started: &[usize],
+) -> Vec<UnidentifiedKnot> {
+    let (nk, icv) = (held.layout.nk, held.layout.curvature_index());
+    let values = |f: &Fit, k: usize| (f.theta[nk + k], f.theta[icv + k]);
+    started
+        .iter()
+        .map(|&k| {
+            let ((c0, c20), (c1, c21), (c, c2)) =
+                (values(before, k), values(held, k), values(refitted, k));
+            UnidentifiedKnot {
+                current_a: d.knots[k],
+                yield_force_n: refitted.theta[k],
+                viscous_n_s_m: c0,
+                why: format!(
+                    "its viscous coefficient of {c0:.4e} N s/m and speed curvature of \
+                     {c20:.4e} N stand apart from the other knots' (they trade against each \
+                     other over its fitting strokes); refitted to {c:.4e} N s/m and {c2:.4e} N \
+                     from its neighbours' {c1:.4e} N s/m and {c21:.4e} N"
+                ),
+            }
         })
         .collect()
 }
@@ -1914,19 +1950,17 @@ fn settled_baseline(d: &mut Prepared, opts: &Options) -> Settled {
     // with it: a second start in a flat valley, kept when it fits the fitting blocks no
     // worse; the knots are listed as unidentified, with what was done.
     if let Some(held) = crate::model::hold_unyielded_knots(d, &base) {
-        let mut lay = held.layout.clone();
-        lay.held_yield.clear();
-        let free = fit(d, &lay, &held.theta);
-        if free.train_rmse() <= base.train_rmse() {
-            held_knots.extend(unyielded_knots_named(d, &base, &held, &free));
-            base = free;
+        let mut free = held.layout.clone();
+        free.held_yield.clear();
+        if let Some(refit) = second_start_if_fits_no_worse(d, &base, &held, &free) {
+            held_knots.extend(unyielded_knots_named(d, &base, &held, &refit));
+            base = refit;
         }
     }
     // A knot whose viscous coefficient and speed curvature both stand apart from the other
     // knots' is started from its neighbours' (when, held there, it predicts no worse) and
     // refitted free: kept when it fits the fitting blocks no worse, and listed.
     if let Some(held) = crate::model::hold_outlier_viscous(d, &base) {
-        let (nk, icv) = (held.layout.nk, held.layout.curvature_index());
         let started: Vec<usize> = held
             .layout
             .held_viscous
@@ -1934,30 +1968,13 @@ fn settled_baseline(d: &mut Prepared, opts: &Options) -> Settled {
             .copied()
             .filter(|k| !base.layout.held_viscous.contains(k))
             .collect();
-        let mut lay = held.layout.clone();
-        lay.held_viscous.retain(|k| !started.contains(k));
-        lay.held_curvature
+        let mut free = held.layout.clone();
+        free.held_viscous.retain(|k| !started.contains(k));
+        free.held_curvature
             .retain(|k| !started.contains(k) || base.layout.held_curvature.contains(k));
-        let free = fit(d, &lay, &held.theta);
-        if free.train_rmse() <= base.train_rmse() {
-            held_knots.extend(started.iter().map(|&k| UnidentifiedKnot {
-                current_a: d.knots[k],
-                yield_force_n: free.theta[k],
-                viscous_n_s_m: base.theta[nk + k],
-                why: format!(
-                    "its viscous coefficient of {:.4e} N s/m and speed curvature of {:.4e} N \
-                     stand apart from the other knots' (they trade against each other over \
-                     its fitting strokes); refitted to {:.4e} N s/m and {:.4e} N from its \
-                     neighbours' {:.4e} N s/m and {:.4e} N",
-                    base.theta[nk + k],
-                    base.theta[icv + k],
-                    free.theta[nk + k],
-                    free.theta[icv + k],
-                    held.theta[nk + k],
-                    held.theta[icv + k]
-                ),
-            }));
-            base = free;
+        if let Some(refit) = second_start_if_fits_no_worse(d, &base, &held, &free) {
+            held_knots.extend(outlier_knots_named(d, &base, &held, &refit, &started));
+            base = refit;
         }
     }
     // A knot whose fitting strokes stay slow takes its neighbours' speed curvature (kept
