@@ -24,7 +24,9 @@
 //! * **held-out gain**: the held-out mean square must fall by at least
 //!   [`crate::Calibration::min_holdout_gain_noise`] σ_F², `a² ⟨h_e²⟩_W,held-out ≥ g σ_F²`;
 //! * a chamber compliance must also deflect 0.1 of the displacement noise at the peak
-//!   force (`select::compliance_resolved`).
+//!   force (`select::compliance_resolved`);
+//! * a field lag must be at least one step of the sub-sample grid, the sample interval
+//!   over 8 (`select::lag_resolved`).
 //!
 //! The limit is the largest of these (about where the effect is found half the time). The
 //! share of `g_e`'s weighted energy that J takes up is reported too: an effect whose
@@ -237,6 +239,9 @@ fn asked(
                 / d.peak_force().max(1e-9),
             "resolved deflection",
         ));
+    }
+    if e == Effect::FieldLag {
+        rules.push((crate::select::shortest_resolved_lag_s(d), "resolved lag"));
     }
     let (size, rule) = rules
         .into_iter()
