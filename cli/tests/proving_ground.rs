@@ -891,6 +891,44 @@ fn a_field_lag_shorter_than_a_sample_interval_is_found() {
     );
 }
 
+/// A lag shorter than one step of the model's sub-sample grid is not a finding
+/// (proving-ground seed 780: a fluid mass hidden, no lag, 200 Hz, current stepped). With
+/// the 1 ms start the lag candidate reached 0.22 ms, 0.04 of the sample interval, and beat
+/// its bootstrap null beside the mass; so short a lag acts within the sub-interval that
+/// holds a current step, as moving the step would (diagnose::select::lag_resolved). The
+/// mass alone is found, and the lag's detection limit is that step.
+#[test]
+fn a_lag_shorter_than_a_step_of_the_sub_sample_grid_is_not_a_finding() {
+    let (m, d) = generate_and_diagnose(780);
+    assert_eq!(
+        hidden_effects(&m),
+        ["fluid_inertia"],
+        "the scenario changed"
+    );
+    assert_eq!(found_effects(&d), ["fluid_inertia"], "{}", d["trials"]);
+    let dt_ms = 1e3 / m["excitation"]["fs_hz"].as_f64().unwrap();
+    let short = d["trials"].as_array().unwrap().iter().any(|t| {
+        t["effect"] == "field_lag"
+            && t["parameters"]["field_time_constant"]["value"]
+                .as_f64()
+                .unwrap()
+                < dt_ms / 8.0
+            && t["passed"][1].as_bool().unwrap()
+    });
+    assert!(short, "no short lag was tried here: {}", d["trials"]);
+    let limit = d["detection_limits"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|l| l["effect"] == "field_lag")
+        .expect("a lag limit");
+    assert_eq!(limit["rule"], "resolved lag", "{limit}");
+    assert!(
+        (limit["limit"].as_f64().unwrap() - dt_ms / 8.0).abs() < 1e-6,
+        "{limit}"
+    );
+}
+
 /// A knot whose viscous coefficient runs away takes its neighbours' (proving-ground null
 /// seed 154: a bi-viscous fluid of viscosity ratio 420 under random held currents, 1.5 s
 /// per level). At 0.586 A and 1.338 A the strokes never leave the fluid's pre-yield ramp,
