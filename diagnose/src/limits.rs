@@ -241,7 +241,7 @@ fn asked(
         ));
     }
     if e == Effect::FieldLag {
-        rules.push((crate::select::shortest_resolved_lag_s(d), "resolved lag"));
+        rules.push((crate::model::shortest_resolved_lag_s(d), "resolved lag"));
     }
     let (size, rule) = rules
         .into_iter()

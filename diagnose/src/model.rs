@@ -364,6 +364,13 @@ pub const MIN_COMPLIANCE_DEFLECTION_PER_NOISE: f64 = 0.1;
 /// the compressibility there).
 pub const XP_MAX: f64 = 2e-4;
 
+/// The shortest field lag \[s\] a record resolves (`select::lag_resolved`): one step of the
+/// sub-sample grid the model runs on near a current step, the sample interval over
+/// [`crate::subsample::OVERSAMPLING`].
+pub fn shortest_resolved_lag_s(d: &Prepared) -> f64 {
+    d.measurement.sample_interval_s / crate::subsample::OVERSAMPLING as f64
+}
+
 /// The presliding bound for this record: [`XP_MAX`], or half the stroke if shorter.
 pub fn xp_max(d: &Prepared) -> f64 {
     XP_MAX.min(d.half_stroke_m).max(2.0 * XP_MIN)

@@ -2343,13 +2343,7 @@ fn interval_clear(d: &Prepared, fit: &Fit, e: Effect) -> bool {
 /// mass, once the lag could start from 1 ms; the lags found where one was hidden are 0.19
 /// of the sample interval and longer (seed 716: 0.96 ms at 200 Hz; seed 324: 1.0 ms).
 fn lag_resolved(d: &Prepared, tau: f64) -> bool {
-    tau >= shortest_resolved_lag_s(d)
-}
-
-/// The shortest field lag \[s\] a record resolves ([`lag_resolved`]): one step of the
-/// model's sub-sample grid.
-pub fn shortest_resolved_lag_s(d: &Prepared) -> f64 {
-    d.measurement.sample_interval_s / crate::subsample::OVERSAMPLING as f64
+    tau >= crate::model::shortest_resolved_lag_s(d)
 }
 
 /// Whether a seal friction's presliding displacement `xp` (standard error `se`) is
@@ -2546,7 +2540,7 @@ mod tests {
         assert!((d.measurement.sample_interval_s - 1e-3).abs() < 1e-9);
         assert!(lag_resolved(&d, 0.2e-3));
         assert!(!lag_resolved(&d, 0.05e-3));
-        let step = shortest_resolved_lag_s(&d);
+        let step = crate::model::shortest_resolved_lag_s(&d);
         assert!((step - 1e-3 / 8.0).abs() < 1e-12, "{step}");
         assert!(lag_resolved(&d, 1.01 * step));
         assert!(!lag_resolved(&d, 0.99 * step));
