@@ -1878,20 +1878,15 @@ pub fn hold_outlier_viscous(d: &Prepared, base: &Fit) -> Option<Fit> {
     let icv = base.layout.curvature_index();
     let c = |k: usize| base.theta[nk + k];
     let c2 = |k: usize| base.theta[icv + k];
-    let median = |mut v: Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
-    };
     let apart = |k: usize| {
-        let others: Vec<usize> = (0..nk).filter(|&q| q != k).collect();
-        let mc = median(others.iter().map(|&q| c(q)).collect());
-        let mc2 = median(others.iter().map(|&q| c2(q).abs()).collect());
+        let others = || (0..nk).filter(move |&q| q != k);
+        let mc = crate::stats::median(others().map(c).collect());
+        let mc2 = crate::stats::median(others().map(|q| c2(q).abs()).collect());
         c(k) > OUTLIER_VISCOUS_RATIO * mc
             && c2(k).abs() > OUTLIER_CURVATURE_RATIO * mc2
             && c2(k).abs() > OUTLIER_CURVATURE_SHARE * base.theta[k]
     };
-    let out: Vec<usize> = (0..nk).filter(|&k| apart(k)).collect();
-    let donors: Vec<usize> = (0..nk).filter(|&k| !apart(k)).collect();
+    let (out, donors): (Vec<usize>, Vec<usize>) = (0..nk).partition(|&k| apart(k));
     if out.is_empty() || donors.is_empty() {
         return None;
     }
