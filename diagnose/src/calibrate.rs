@@ -113,7 +113,7 @@ impl CalibratedEvidence {
 
 /// T_e of a candidate fit against the current one.
 pub fn statistic(current: &Fit, cand: &Fit) -> f64 {
-    let dof = (current.train_n as f64 - current.layout.len() as f64).max(1.0);
+    let dof = (current.train_n as f64 - current.layout.model_len() as f64).max(1.0);
     let s2 = (current.train_sse / dof).max(1e-300);
     ((current.train_sse - cand.train_sse) / s2).max(0.0)
 }

@@ -154,6 +154,7 @@ fn effect_values(e: Effect, shape: Shape, a: f64) -> Vec<f64> {
         (Effect::SealFriction, Shape::Presliding(xp)) => vec![a, xp],
         (Effect::SealFriction, _) => vec![a, crate::model::XP_MIN],
         (Effect::FluidCompressibility, _) => vec![a, 0.0, 0.0, 0.0],
+        (Effect::ThermalSoftening, _) => vec![a, 0.0],
         _ => vec![a],
     }
 }
@@ -323,7 +324,7 @@ pub fn detection_limits(
         return Vec::new();
     };
     let m = fit.train_n as f64;
-    let s2 = fit.train_sse / (m - fit.layout.len() as f64).max(1.0);
+    let s2 = fit.train_sse / (m - fit.layout.model_len() as f64).max(1.0);
     let inflate = m / stats::effective_n(fit.train_n, fit.rho1);
     let force_rms = rms_all(d, &d.f);
     let mut out = Vec::new();

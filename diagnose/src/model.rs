@@ -21,8 +21,9 @@
 //!   F_c tanh(v / v_s)  \[F_c = 0\]
 //! * `gas_spring`: `+ k x`, k ≥ 0 (the preload is in the baseline's offset)  \[k = 0\]
 //! * `fluid_inertia`: `+ m a`  \[m = 0\]
-//! * `thermal_softening`: `F_y, c ← (1 − β E(t)) F_y, c`, E the dissipated energy
-//!   ∫ F v dt measured since the start \[β = 0\]
+//! * `thermal_softening`: `F_y ← (1 − β_y E(t)) F_y`, `c, c₂ ← (1 − β_c E(t)) c, c₂`, E
+//!   the dissipated energy ∫ F v dt measured since the start; tested with β_c = β_y, β_c
+//!   freed once accepted ([`Layout::thermal_apart`])  \[β_y = 0\]
 //! * `field_lag`: the fluid sees `I_eff`, `τ dI_eff/dt = I − I_eff`  \[τ = 0\]
 //! * `fluid_compressibility`: a chamber compliance C between piston and gap:
 //!   `C dF/dt = v − w(F)`, w the gap flow velocity that force F drives (inverse of the
@@ -68,6 +69,10 @@ pub struct Layout {
     /// against its null) and, once accepted, refitted with them free
     /// (`select::free_chamber_shape`).
     pub chamber_shape: bool,
+    /// Whether a thermal softening's viscous terms soften apart from the yield force
+    /// (β_c free); otherwise β_c is held and c, c₂ soften with β_y, as tested
+    /// (`select::free_thermal_apart`).
+    pub thermal_apart: bool,
 }
 
 /// The seal friction's step `F_c s`, or the same step following one of the fluid's own
@@ -117,10 +122,10 @@ const VOLUME_CHANGE: usize = 3;
 /// compressibility's chamber shape ([`CHAMBER_SHAPE`]).
 pub fn tested_params(e: Effect) -> usize {
     effect_params(e).len()
-        - if e == Effect::FluidCompressibility {
-            CHAMBER_SHAPE.len()
-        } else {
-            0
+        - match e {
+            Effect::FluidCompressibility => CHAMBER_SHAPE.len(),
+            Effect::ThermalSoftening => 1,
+            _ => 0,
         }
 }
 
@@ -158,13 +163,24 @@ pub fn effect_params(e: Effect) -> &'static [ParamInfo] {
         no_effect: 0.0,
         sign: 1.0,
     }];
-    const THERMAL: [ParamInfo; 1] = [ParamInfo {
-        name: "softening_per_energy",
-        unit: "1/kJ",
-        scale: 1.0,
-        no_effect: 0.0,
-        sign: 1.0,
-    }];
+    // The yield force's softening, and the viscous terms' (held at the yield force's
+    // while the effect is tested; [`Layout::thermal_apart`]).
+    const THERMAL: [ParamInfo; 2] = [
+        ParamInfo {
+            name: "softening_per_energy",
+            unit: "1/kJ",
+            scale: 1.0,
+            no_effect: 0.0,
+            sign: 1.0,
+        },
+        ParamInfo {
+            name: "viscous_softening_per_energy",
+            unit: "1/kJ",
+            scale: 1.0,
+            no_effect: 0.0,
+            sign: 1.0,
+        },
+    ];
     const LAG: [ParamInfo; 1] = [ParamInfo {
         name: "field_time_constant",
         unit: "ms",
@@ -272,10 +288,30 @@ impl Layout {
             .chain(self.held_curvature.iter().map(move |k| icv + k))
             .chain(self.held_yield.iter().copied())
             .chain(shape)
+            .chain(
+                self.index(Effect::ThermalSoftening)
+                    .filter(|_| !self.thermal_apart)
+                    .map(|k| k + 1),
+            )
     }
     /// Number of parameters the fit moves ([`Layout::len`] less the held ones).
     pub fn free_len(&self) -> usize {
         self.len() - self.held_parameters().count()
+    }
+    /// The slot of `e`'s parameters whose value its parameter `slot` has: a thermal
+    /// softening's viscous terms soften with the yield force's β_y while they are tied.
+    pub fn value_slot(&self, e: Effect, slot: usize) -> usize {
+        if e == Effect::ThermalSoftening && slot == 1 && !self.thermal_apart {
+            0
+        } else {
+            slot
+        }
+    }
+    /// Number of parameters the model has: [`Layout::len`] less a thermal softening's
+    /// viscous slot while it is tied to the yield force's (its value is not used).
+    pub fn model_len(&self) -> usize {
+        self.len()
+            - usize::from(self.index(Effect::ThermalSoftening).is_some() && !self.thermal_apart)
     }
     /// Number of baseline parameters (knots, offset, leaks, curvature per knot).
     pub fn base_len(&self) -> usize {
@@ -546,14 +582,20 @@ fn evaluate_at(d: &Prepared, inp: &Channels, lay: &Layout, theta: &[f64], jac: b
             ),
             None => (1.0, 0.0),
         };
+        // The viscous terms' own softening, or the yield force's while they are tied.
+        let ic = ith.map(|b| if lay.thermal_apart { b + 1 } else { b });
+        let scale_c = match ic {
+            Some(q) if lay.thermal_apart => (1.0 - theta[q] * inp.energy_kj[j]).max(0.05),
+            _ => scale,
+        };
         let fy = (scale * fy_raw).max(FY_MIN);
-        let c = (scale * c_raw).max(C_MIN);
+        let c = (scale_c * c_raw).max(C_MIN);
         // Curvature of the force–speed law: c₂(I) v|v| / V, V the record's peak speed
         // (shear thinning c₂ < 0, thickening c₂ > 0; a Herschel–Bulkley or regularised
         // fluid is not a Bingham line at speed).
         let q2 = inp.v[j] * inp.v[j].abs() / d.velocity_scale;
         let c2_raw = ip.value(&theta[icv..icv + nk]);
-        let curv = scale * c2_raw * q2;
+        let curv = scale_c * c2_raw * q2;
         let yv = fy / c;
         let veps = (sample_leak(leak, inp.v_sigma[j]).powi(2) + (leak_rel * yv).powi(2)).sqrt();
         let (dve_la, dve_lr, dve_fy, dve_c) = if veps > 0.0 {
@@ -573,15 +615,15 @@ fn evaluate_at(d: &Prepared, inp: &Channels, lay: &Layout, theta: &[f64], jac: b
                 gfy.push((q, scale * w));
             }
             for (q, w) in ip.pairs() {
-                gc.push((nk + q, scale * w));
+                gc.push((nk + q, scale_c * w));
             }
-            if let Some(b) = ith {
+            if let (Some(b), Some(q)) = (ith, ic) {
                 gfy.push((b, -beta_e * fy_raw));
-                gc.push((b, -beta_e * c_raw));
+                gc.push((q, -beta_e * c_raw));
             }
             if let Some(l) = ilag {
                 gfy.push((l, scale * dfy_di * di_dtau));
-                gc.push((l, scale * dc_di * di_dtau));
+                gc.push((l, scale_c * dc_di * di_dtau));
             }
         }
         let v = inp.v[j];
@@ -661,13 +703,13 @@ fn evaluate_at(d: &Prepared, inp: &Channels, lay: &Layout, theta: &[f64], jac: b
         if jac {
             jm[row + ioff] = 1.0;
             for (q, w) in ip.pairs() {
-                jm[row + icv + q] += scale * w * q2;
+                jm[row + icv + q] += scale_c * w * q2;
             }
-            if let Some(b) = ith {
-                jm[row + b] -= inp.energy_kj[j] * c2_raw * q2;
+            if let Some(q) = ic {
+                jm[row + q] -= inp.energy_kj[j] * c2_raw * q2;
             }
             if let Some(l) = ilag {
-                jm[row + l] += scale * ip.slope(&theta[icv..icv + nk]) * di_dtau * q2;
+                jm[row + l] += scale_c * ip.slope(&theta[icv..icv + nk]) * di_dtau * q2;
             }
         }
         // Yield softness: β F_y sgn v [(1 − e^{−r}) − min(r, 1)], r = |v|/v_ε, the
@@ -969,6 +1011,9 @@ fn clamp_bounds(d: &Prepared, lay: &Layout, theta: &mut [f64]) {
         if let Some(k) = lay.index(e) {
             theta[k] = theta[k].max(0.0);
         }
+    }
+    if let Some(k) = lay.index(Effect::ThermalSoftening) {
+        theta[k + 1] = theta[k + 1].max(0.0);
     }
     // The pressure stiffening keeps 1 + γ F above 0.1 at the record's peak force; the
     // liquid share lies in 0…1; the volume change keeps the chamber at a tenth of its
@@ -1363,7 +1408,7 @@ pub fn fit_with(
             jtj[(q, q)] = 1.0;
         }
     }
-    let sigma2 = sse / (m as f64 - p as f64).max(1.0);
+    let sigma2 = sse / (m as f64 - lay.model_len() as f64).max(1.0);
     let inflate = m as f64 / n_eff;
     let mut se = match jtj.clone().try_inverse() {
         Some(inv) => (0..p)
@@ -2079,6 +2124,7 @@ fn baseline_start(d: &Prepared) -> (Layout, Vec<f64>) {
             held_curvature: Vec::new(),
             held_yield: Vec::new(),
             chamber_shape: false,
+            thermal_apart: false,
         },
         theta,
     )
@@ -2114,6 +2160,7 @@ mod tests {
             held_curvature: Vec::new(),
             held_yield: Vec::new(),
             chamber_shape: false,
+            thermal_apart: false,
         };
         let th = vec![
             250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 0.0, 0.004, 0.0, 0.0, 0.0, 0.0, 0.0,
@@ -2165,6 +2212,7 @@ mod tests {
             held_curvature: Vec::new(),
             held_yield: Vec::new(),
             chamber_shape: false,
+            thermal_apart: false,
         };
         assert_eq!(layout.nk, 1);
         // No leak of its own: each sample's velocity error makes it ([`sample_leak`]).
@@ -2257,6 +2305,7 @@ mod tests {
             held_curvature: Vec::new(),
             held_yield: Vec::new(),
             chamber_shape: false,
+            thermal_apart: false,
         };
         // Knot values linear in current (uneven spacing) cost nothing.
         let line = |a: f64, b: f64| d.knots.iter().map(|i| a + b * i).collect::<Vec<f64>>();
@@ -2324,28 +2373,74 @@ mod tests {
             held_curvature: Vec::new(),
             held_yield: Vec::new(),
             chamber_shape: true,
+            thermal_apart: true,
         };
         // knots' F_y and c, offset, leak, relative leak, yield softness, knots' c₂
         let mut theta = vec![
             250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 12.0, 0.004, 0.05, 0.3, -20.0, 10.0, 30.0,
         ];
         // compressibility 0.05 mm/kN stiffening 0.3/kN, liquid share 0.3, volume change
-        // −0.4, gas, friction (15 N, 0.2 mm presliding), thermal, lag 8 ms, inertia (ALL
-        // order)
-        theta.extend([5e-8, 3e-4, 0.3, -0.4, 800.0, 15.0, 2e-4, 0.05, 0.008, 0.5]);
+        // −0.4, gas, friction (15 N, 0.2 mm presliding), thermal (yield 0.05/kJ, viscous
+        // 0.12/kJ), lag 8 ms, inertia (ALL order)
+        theta.extend([
+            5e-8, 3e-4, 0.3, -0.4, 800.0, 15.0, 2e-4, 0.05, 0.12, 0.008, 0.5,
+        ]);
         assert_eq!(theta.len(), lay.len());
-        // The library's friction and the ones scaled by the yield force and the viscosity.
-        for scaled in [
-            FrictionScale::Constant,
-            FrictionScale::Yield,
-            FrictionScale::Viscous,
+        // The library's friction and the ones scaled by the yield force and the viscosity;
+        // the thermal softening's viscous terms apart and tied to the yield force's.
+        for (scaled, apart) in [
+            (FrictionScale::Constant, true),
+            (FrictionScale::Yield, true),
+            (FrictionScale::Viscous, true),
+            (FrictionScale::Constant, false),
         ] {
             let lay = Layout {
                 friction_scale: scaled,
+                thermal_apart: apart,
                 ..lay.clone()
             };
             check_jacobian(&d, &lay, &theta);
         }
+    }
+
+    /// A tied thermal softening is the one factor: its viscous slot is held and unused, the
+    /// model is the free one with β_c = β_y, and it has one parameter fewer.
+    #[test]
+    fn a_tied_thermal_softening_softens_the_viscous_terms_with_the_yield_force() {
+        let d = record();
+        let apart = Layout {
+            nk: d.knots.len(),
+            effects: vec![Effect::ThermalSoftening],
+            soft: false,
+            friction_scale: FrictionScale::Constant,
+            held_viscous: Vec::new(),
+            held_curvature: Vec::new(),
+            held_yield: Vec::new(),
+            chamber_shape: false,
+            thermal_apart: true,
+        };
+        let tied = Layout {
+            thermal_apart: false,
+            ..apart.clone()
+        };
+        let mut theta = vec![
+            250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 12.0, 0.004, 0.05, 0.3, -20.0, 10.0, 30.0,
+        ];
+        theta.extend([0.3, 0.3]);
+        let same = evaluate(&d, &apart, &theta, false).force;
+        theta[tied.len() - 1] = 2.0;
+        let held = evaluate(&d, &tied, &theta, false).force;
+        assert_eq!(same, held);
+        let k = tied.index(Effect::ThermalSoftening).unwrap();
+        assert_eq!(tied.held_parameters().collect::<Vec<_>>(), [k + 1]);
+        assert_eq!(
+            (tied.model_len(), apart.model_len()),
+            (tied.len() - 1, apart.len())
+        );
+        assert_eq!(tied.value_slot(Effect::ThermalSoftening, 1), 0);
+        // Apart, the viscous softening moves the force.
+        let moved = evaluate(&d, &apart, &theta, false).force;
+        assert!(moved.iter().zip(&same).any(|(a, b)| (a - b).abs() > 1.0));
     }
 
     /// On a continuously varying current the knots are a grid, and under
@@ -2375,6 +2470,7 @@ mod tests {
             held_curvature: Vec::new(),
             held_yield: Vec::new(),
             chamber_shape: true,
+            thermal_apart: true,
         };
         // A saturating yield force, a rising viscosity and curvature over the knots.
         let mut theta: Vec<f64> = d
@@ -2385,7 +2481,9 @@ mod tests {
         theta.extend(d.knots.iter().map(|i| 800.0 + 300.0 * i));
         theta.extend([12.0, 0.004, 0.05, 0.3]);
         theta.extend(d.knots.iter().map(|i| -20.0 + 40.0 * i * i));
-        theta.extend([5e-8, 3e-4, 0.3, -0.4, 800.0, 15.0, 2e-4, 0.05, 0.008, 0.5]);
+        theta.extend([
+            5e-8, 3e-4, 0.3, -0.4, 800.0, 15.0, 2e-4, 0.05, 0.12, 0.008, 0.5,
+        ]);
         assert_eq!(theta.len(), lay.len());
         check_jacobian(&d, &lay, &theta);
     }
