@@ -2304,11 +2304,24 @@ fn free_chamber_shape(d: &Prepared, fit: &Fit, cal: Option<&CalibratedEvidence>)
         ..fit.layout.clone()
     };
     let freed = crate::model::fit(d, &lay, &fit.theta);
+    let shape_params = crate::model::CHAMBER_SHAPE.len() as f64;
+    freed_if_it_beats(d, fit, freed, cal, shape_params)
+}
+
+/// `freed` (`fit` with `dof` more parameters freed) where it lowers the fitting SSE by
+/// more than χ²(dof)'s point at the accepted candidate's α, scaled as its bootstrap null
+/// is, and predicts the held-out blocks no worse; otherwise `fit`.
+fn freed_if_it_beats(
+    d: &Prepared,
+    fit: &Fit,
+    freed: Fit,
+    cal: Option<&CalibratedEvidence>,
+    dof: f64,
+) -> Fit {
     let (kappa, alpha) = cal
         .map(|c| (c.null_scale.unwrap_or(1.0).max(1.0), c.alpha))
         .unwrap_or((1.0, Calibration::default().alpha_per_test(0)));
-    let shape_params = crate::model::CHAMBER_SHAPE.len() as f64;
-    let threshold = kappa * stats::chi2_quantile(1.0 - alpha, shape_params);
+    let threshold = kappa * stats::chi2_quantile(1.0 - alpha, dof);
     if calibrate::statistic(fit, &freed) > threshold && freed.holdout_rmse(d) <= fit.holdout_rmse(d)
     {
         freed
@@ -2342,16 +2355,7 @@ fn free_thermal_apart(d: &Prepared, fit: &Fit, cal: Option<&CalibratedEvidence>)
     let mut theta = fit.theta.clone();
     theta[k + 1] = theta[k];
     let freed = crate::model::fit(d, &lay, &theta);
-    let (kappa, alpha) = cal
-        .map(|c| (c.null_scale.unwrap_or(1.0).max(1.0), c.alpha))
-        .unwrap_or((1.0, Calibration::default().alpha_per_test(0)));
-    let threshold = kappa * stats::chi2_quantile(1.0 - alpha, 1.0);
-    if calibrate::statistic(fit, &freed) > threshold && freed.holdout_rmse(d) <= fit.holdout_rmse(d)
-    {
-        freed
-    } else {
-        fit.clone()
-    }
+    freed_if_it_beats(d, fit, freed, cal, 1.0)
 }
 
 /// Whether effect `e`'s parameter in `fit` is physical with a 95 % interval clear of its
