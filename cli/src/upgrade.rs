@@ -103,6 +103,32 @@ pub fn seed_effect(
     }
 }
 
+/// The viscous terms' softening over the yield force's, β_c/β_y, of a thermal softening
+/// whose viscous softening diagnose freed from the yield force's
+/// (`diagnose::select::free_thermal_apart`); `None` while they are tied (its value is then
+/// the yield force's by construction, not a measurement) or without a finding.
+fn freed_viscous_softening_ratio(dg: &Diagnosis) -> Option<f64> {
+    let f = dg
+        .report
+        .findings
+        .iter()
+        .find(|f| f.effect == Effect::ThermalSoftening.id())?;
+    let [y, c] = ::diagnose::model::effect_params(Effect::ThermalSoftening) else {
+        return None;
+    };
+    let (by, bc) = (f.parameters.get(y.name)?, f.parameters.get(c.name)?);
+    (bc.tied_to.is_none() && by.value > 0.0).then(|| bc.value.max(0.0) / by.value)
+}
+
+/// Put the viscous softening diagnose freed into the two-chamber parameters, after
+/// [`seed_effect`] has set the thermal softening's heat capacity C = 10³ α_y/β_y. The
+/// twin's viscosity falls as μ exp(−α_η ΔT) ≈ μ (1 − α_η ΔT) where diagnose's viscous
+/// terms fall as c (1 − β_c E), E \[kJ\] = C ΔT/10³: α_η = β_c C/10³ = α_y β_c/β_y
+/// (`ratio` = β_c/β_y). The twin's fit moves C, not α_η: the ratio is held.
+pub fn seed_viscous_softening(tc: &mut TwoChamberParams, ratio: f64) {
+    tc.fluid.viscosity_temp_coeff_per_k = tc.fluid.yield_stress_temp_coeff_per_k * ratio;
+}
+
 /// What `diagnose --params` adds to its output: the JSON entry `twin`, and a line for the
 /// terminal when an upgraded twin was written.
 pub struct TwinCheck {
@@ -222,7 +248,9 @@ pub fn write_upgraded(
     let effects = found
         .iter()
         .fold(config.effects, |set: EffectSet, (e, _)| set.with(*e));
-    let (c, held, profile) = calibrated_at_best_width(&config, &found, step, effects, records)?;
+    let viscous = freed_viscous_softening_ratio(dg);
+    let (c, held, profile) =
+        calibrated_at_best_width(&config, (&found, viscous), step, effects, records)?;
     // The full fit ran through the same pipeline on every sample: its RMS is the replay's.
     let up_rmse = c.full.rmse_n;
     let fitted = c.full.applied_to(&config);
@@ -268,7 +296,8 @@ pub fn write_upgraded(
 }
 
 /// The upgraded twin calibrated on `records`: `config` with the `found` effects seeded from
-/// diagnose's values (and the fluid's yield `step`, when carried) and switched on
+/// diagnose's values (a freed `viscous` softening too, as β_c/β_y; and the fluid's yield
+/// `step`, when carried) and switched on
 /// (`effects`). The twin's seal friction is a tanh step whose width the fit does not move
 /// (freed, it runs off against the leak and τ_y(0)): with a friction added, the upgrade is
 /// calibrated at each width of FRICTION_WIDTHS (a share of the record's peak speed) and the
@@ -276,7 +305,7 @@ pub fn write_upgraded(
 /// value, and the held-out RMS at each width tried (empty without a friction).
 fn calibrated_at_best_width(
     config: &PipelineConfig,
-    found: &[(Effect, f64)],
+    (found, viscous): (&[(Effect, f64)], Option<f64>),
     step: Option<&FluidShape>,
     effects: EffectSet,
     records: &[Vec<SensorSample>],
@@ -306,6 +335,9 @@ fn calibrated_at_best_width(
                 share * peak_speed,
                 effects.has(Effect::GasSpring),
             );
+        }
+        if let Some(ratio) = viscous {
+            seed_viscous_softening(&mut upgraded.two_chamber, ratio);
         }
         if let Some(st) = step {
             // diagnose's F_c F_y(I)/F̄_y tanh(v/v_s) is β F_y(I) tanh(v/v_s): β = F_c/F̄_y.
@@ -381,5 +413,32 @@ fn calibrate_upgrade(
              diagnose's values"
         );
         held.extend(added);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A freed viscous softening reaches the twin as α_η with the ratio diagnose fitted:
+    /// over a small heat ΔT = 10³ E/C the twin's yield stress and viscosity fall by β_y E
+    /// and β_c E, diagnose's rates per dissipated energy.
+    #[test]
+    fn a_freed_viscous_softening_seeds_the_twins_viscosity_coefficient() {
+        let (by, bc) = (0.05, 0.6);
+        let mut tc = TwoChamberParams::default();
+        let viscous_before = tc.fluid.viscosity_temp_coeff_per_k;
+        seed_effect(&mut tc, Effect::ThermalSoftening, by, 1e-3, false);
+        assert_eq!(
+            tc.fluid.viscosity_temp_coeff_per_k, viscous_before,
+            "a tied softening leaves the twin's viscosity coefficient alone"
+        );
+        seed_viscous_softening(&mut tc, bc / by);
+        let energy_kj = 1e-3;
+        let dt = 1e3 * energy_kj / tc.heat_capacity_j_per_k;
+        let yield_fall = tc.fluid.yield_stress_temp_coeff_per_k * dt;
+        let viscous_fall = 1.0 - (-tc.fluid.viscosity_temp_coeff_per_k * dt).exp();
+        assert!((yield_fall / (by * energy_kj) - 1.0).abs() < 1e-12);
+        assert!((viscous_fall / (bc * energy_kj) - 1.0).abs() < 1e-3);
     }
 }

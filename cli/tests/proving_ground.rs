@@ -692,6 +692,9 @@ fn an_accepted_thermal_softening_frees_its_viscous_softening() {
     let (yield_truth, viscous_truth) = (truth("beta_tau_per_K"), truth("beta_mu_per_K"));
     let (by, by_ci) = finding_parameter(&d, "thermal_softening", "softening_per_energy");
     let (bc, bc_ci) = finding_parameter(&d, "thermal_softening", "viscous_softening_per_energy");
+    let viscous = &entry_of(&d["findings"], "thermal_softening")["parameters"]
+        ["viscous_softening_per_energy"];
+    assert!(viscous.get("tied_to").is_none(), "{viscous}");
     eprintln!(
         "yield {by} {by_ci:?} (true {yield_truth}); viscous {bc} {bc_ci:?} (true {viscous_truth})"
     );
@@ -1442,4 +1445,9 @@ fn the_null_twins_detection_limits_predict_what_the_record_shows() {
         ["gas_spring", "seal_friction", "thermal_softening"],
         "the limits put every effect within reach"
     );
+    // So near its limit the softening is the one factor: the viscous softening it reports
+    // says it is the yield force's, not a measurement of its own.
+    let viscous = &entry_of(&d["findings"], "thermal_softening")["parameters"]
+        ["viscous_softening_per_energy"];
+    assert_eq!(viscous["tied_to"], "softening_per_energy", "{viscous}");
 }

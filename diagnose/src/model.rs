@@ -249,6 +249,22 @@ pub fn sample_leak(leak: f64, v_sigma: f64) -> f64 {
 pub const BASE_EXTRA: usize = 4;
 
 impl Layout {
+    /// The baseline's layout over `nk` current knots: no effect, the yield softness held,
+    /// the library's seal friction, nothing held, the chamber's shape and a thermal
+    /// softening's viscous terms tied as tested.
+    pub fn bare(nk: usize) -> Layout {
+        Layout {
+            nk,
+            effects: Vec::new(),
+            soft: false,
+            friction_scale: FrictionScale::Constant,
+            held_viscous: Vec::new(),
+            held_curvature: Vec::new(),
+            held_yield: Vec::new(),
+            chamber_shape: false,
+            thermal_apart: false,
+        }
+    }
     /// Index of the force-sensor offset \[N\].
     pub fn offset_index(&self) -> usize {
         2 * self.nk
@@ -2114,20 +2130,7 @@ fn baseline_start(d: &Prepared) -> (Layout, Vec<f64>) {
     }
     let vmax = d.stroke_speed.iter().fold(0.0f64, |m, x| m.max(*x));
     theta[2 * nk + 1] = 1e-3 * vmax;
-    (
-        Layout {
-            nk,
-            effects: Vec::new(),
-            soft: false,
-            friction_scale: FrictionScale::Constant,
-            held_viscous: Vec::new(),
-            held_curvature: Vec::new(),
-            held_yield: Vec::new(),
-            chamber_shape: false,
-            thermal_apart: false,
-        },
-        theta,
-    )
+    (Layout::bare(nk), theta)
 }
 
 #[cfg(test)]
@@ -2152,15 +2155,8 @@ mod tests {
     /// relative leak, softness or curvature. Its layout, parameters and force.
     fn bare_baseline(d: &Prepared) -> (Layout, Vec<f64>, Vec<f64>) {
         let base = Layout {
-            nk: d.knots.len(),
-            effects: vec![],
             soft: true,
-            friction_scale: FrictionScale::Constant,
-            held_viscous: Vec::new(),
-            held_curvature: Vec::new(),
-            held_yield: Vec::new(),
-            chamber_shape: false,
-            thermal_apart: false,
+            ..Layout::bare(d.knots.len())
         };
         let th = vec![
             250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 0.0, 0.004, 0.0, 0.0, 0.0, 0.0, 0.0,
@@ -2203,17 +2199,7 @@ mod tests {
                 bingham::force_leaky(v, fy, c, 0.0).0 + 5.0 * unit.sample(&mut rng)
             })
             .collect();
-        let layout = Layout {
-            nk: d.knots.len(),
-            effects: vec![],
-            soft: false,
-            friction_scale: FrictionScale::Constant,
-            held_viscous: Vec::new(),
-            held_curvature: Vec::new(),
-            held_yield: Vec::new(),
-            chamber_shape: false,
-            thermal_apart: false,
-        };
+        let layout = Layout::bare(d.knots.len());
         assert_eq!(layout.nk, 1);
         // No leak of its own: each sample's velocity error makes it ([`sample_leak`]).
         let theta = vec![fy, c, 0.0, 0.0, 0.0, 0.0, 0.0];
@@ -2296,17 +2282,7 @@ mod tests {
         d.knots = vec![0.0, 0.5, 1.5, 2.0];
         d.velocity_scale = 0.2;
         d.knot_smoothing = [3.0; 3];
-        let lay = Layout {
-            nk: 4,
-            effects: vec![],
-            soft: false,
-            friction_scale: FrictionScale::Constant,
-            held_viscous: Vec::new(),
-            held_curvature: Vec::new(),
-            held_yield: Vec::new(),
-            chamber_shape: false,
-            thermal_apart: false,
-        };
+        let lay = Layout::bare(4);
         // Knot values linear in current (uneven spacing) cost nothing.
         let line = |a: f64, b: f64| d.knots.iter().map(|i| a + b * i).collect::<Vec<f64>>();
         let mut theta = vec![0.0; lay.len()];
@@ -2365,15 +2341,11 @@ mod tests {
     fn jacobian_matches_finite_differences_with_every_effect() {
         let d = record();
         let lay = Layout {
-            nk: d.knots.len(),
             effects: Effect::ALL.to_vec(),
             soft: true,
-            friction_scale: FrictionScale::Constant,
-            held_viscous: Vec::new(),
-            held_curvature: Vec::new(),
-            held_yield: Vec::new(),
             chamber_shape: true,
             thermal_apart: true,
+            ..Layout::bare(d.knots.len())
         };
         // knots' F_y and c, offset, leak, relative leak, yield softness, knots' c₂
         let mut theta = vec![
@@ -2409,15 +2381,9 @@ mod tests {
     fn a_tied_thermal_softening_softens_the_viscous_terms_with_the_yield_force() {
         let d = record();
         let apart = Layout {
-            nk: d.knots.len(),
             effects: vec![Effect::ThermalSoftening],
-            soft: false,
-            friction_scale: FrictionScale::Constant,
-            held_viscous: Vec::new(),
-            held_curvature: Vec::new(),
-            held_yield: Vec::new(),
-            chamber_shape: false,
             thermal_apart: true,
+            ..Layout::bare(d.knots.len())
         };
         let tied = Layout {
             thermal_apart: false,
@@ -2462,15 +2428,11 @@ mod tests {
         d.yield_curve = YieldCurve::Cubic;
         let nk = d.knots.len();
         let lay = Layout {
-            nk,
             effects: Effect::ALL.to_vec(),
             soft: true,
-            friction_scale: FrictionScale::Constant,
-            held_viscous: Vec::new(),
-            held_curvature: Vec::new(),
-            held_yield: Vec::new(),
             chamber_shape: true,
             thermal_apart: true,
+            ..Layout::bare(nk)
         };
         // A saturating yield force, a rising viscosity and curvature over the knots.
         let mut theta: Vec<f64> = d

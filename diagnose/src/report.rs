@@ -105,6 +105,12 @@ pub struct Parameter {
     pub halves_spread: f64,
     /// Unit.
     pub unit: String,
+    /// The parameter this one is held equal to, when the model ties them (a thermal
+    /// softening's viscous terms soften with the yield force until
+    /// `select::free_thermal_apart` frees them): its value and interval are that one's,
+    /// not a measurement of its own.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tied_to: Option<String>,
 }
 
 /// Evidence for a candidate.
@@ -421,6 +427,9 @@ pub struct Report {
 fn fmt_params(p: &BTreeMap<String, Parameter>) -> String {
     p.iter()
         .map(|(k, v)| {
+            if let Some(t) = &v.tied_to {
+                return format!("{k} held equal to {t}");
+            }
             let mut s = format!(
                 "{k} = {:.4} {} (95 % CI {:.4} … {:.4}",
                 v.value, v.unit, v.ci95[0], v.ci95[1]

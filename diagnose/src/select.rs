@@ -545,6 +545,7 @@ fn effect_parameters_with_halves(
                     ci95_fit: [v - 1.96 * se, v + 1.96 * se],
                     halves_spread: spread,
                     unit: info.unit.to_string(),
+                    tied_to: (q != slot).then(|| effect_params(e)[q].name.to_string()),
                 },
             );
         }
@@ -1090,13 +1091,26 @@ fn explanation(e: Effect, p: &BTreeMap<String, Parameter>) -> String {
              with frequency squared: mass of the fluid accelerated through the gap",
             g("fluid_mass")
         ),
-        Effect::ThermalSoftening => format!(
-            "the yield force falls by {:.2} % and the viscous force by {:.2} % per kJ \
-             dissipated: the fluid warms and its yield stress and viscosity fall (no \
-             temperature channel needed)",
-            100.0 * g("softening_per_energy"),
-            100.0 * g("viscous_softening_per_energy")
-        ),
+        Effect::ThermalSoftening => {
+            let viscous = p.get("viscous_softening_per_energy");
+            let falls = if viscous.is_some_and(|v| v.tied_to.is_none()) {
+                format!(
+                    "the yield force falls by {:.2} % and the viscous force by {:.2} % per kJ",
+                    100.0 * g("softening_per_energy"),
+                    100.0 * g("viscous_softening_per_energy")
+                )
+            } else {
+                format!(
+                    "the yield force and the viscous force fall by {:.2} % per kJ (one factor: \
+                     the record did not show the viscous force's own)",
+                    100.0 * g("softening_per_energy")
+                )
+            };
+            format!(
+                "{falls} dissipated: the fluid warms and its yield stress and viscosity fall \
+                 (no temperature channel needed)"
+            )
+        }
         Effect::FieldLag => format!(
             "after each current step the force reaches its new level along an exponential with \
              time constant {:.1} ms: magnetic field rise time / eddy currents",

@@ -10,7 +10,9 @@ Only parameters with a clean counterpart in the generator are scored:
 - fluid_inertia: the fluid mass (kg) against the generator's moving mass plus its gap
   fluid's mass;
 - thermal_softening, linear law: the softening per dissipated energy (1/kJ) against
-  β_τ / C (the yield stress's temperature coefficient over the heat capacity);
+  β_τ / C (the yield stress's temperature coefficient over the heat capacity), and, where
+  diagnose freed it from the yield force's (no `tied_to`), the viscous softening against
+  β_μ / C;
 - gas_spring: the stiffness (N/mm) against the least-squares line through the polytropic
   gas's force −(p0 (Vg0/(Vg0 + Ar x))^κ − p_atm) Ar over the record's own displacement
   samples: diagnose fits a line, and the gas's stiffness varies over the stroke. The gas's
@@ -26,21 +28,25 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from pgstats import wilson  # noqa: E402
 
 
-def truth_of(effect, meta):
-    """(parameter name, true value in diagnose's unit) or None."""
+def truths_of(effect, meta):
+    """[(row label, parameter name, true value in diagnose's unit)], empty when the
+    generator's effect has no clean counterpart."""
     eff = {e["effect"]: e for e in meta["effects"]}.get(effect)
     if eff is None:
-        return None
+        return []
     p = eff["parameters"]
     if effect == "field_lag" and p.get("kind") == "first_order":
-        return "field_time_constant", p["effective_tau_s"] * 1e3
+        return [(effect, "field_time_constant", p["effective_tau_s"] * 1e3)]
     if effect == "fluid_inertia":
-        return "fluid_mass", p["moving_mass_kg"] + p["gap_fluid_mass_kg"]
+        return [(effect, "fluid_mass", p["moving_mass_kg"] + p["gap_fluid_mass_kg"])]
     if effect == "thermal_softening" and p.get("law") == "linear":
-        return "softening_per_energy", p["beta_tau_per_K"] / meta["thermal"]["C_J_K"] * 1e3
+        per_kj = 1e3 / meta["thermal"]["C_J_K"]
+        return [(effect, "softening_per_energy", p["beta_tau_per_K"] * per_kj),
+                ("thermal_softening (viscous, freed)", "viscous_softening_per_energy",
+                 p["beta_mu_per_K"] * per_kj)]
     if effect == "gas_spring":
-        return "stiffness", p["stiffness_at_0_N_m"] / 1e3
-    return None
+        return [(effect, "stiffness", p["stiffness_at_0_N_m"] / 1e3)]
+    return []
 
 
 def gas_line_stiffness(meta, csv_path):
@@ -74,25 +80,23 @@ def main(argv):
         with open(os.path.join(d, f"seed{seed:04d}.meta.json")) as f:
             meta = json.load(f)
         for fnd in dg.get("findings", []):
-            t = truth_of(fnd["effect"], meta)
-            if t is None:
-                continue
-            pname, truth = t
-            par = fnd["parameters"].get(pname)
-            if par is None:
-                continue
-            lo, hi = par["ci95"]
-            se = (hi - lo) / 3.92
-            truths = [(fnd["effect"], truth)]
-            if fnd["effect"] == "gas_spring":
-                line = gas_line_stiffness(meta, os.path.join(d, f"seed{seed:04d}.csv"))
-                truths = [("gas_spring (line over the record)", line),
-                          ("gas_spring (stiffness at x = 0)", truth)]
-            for label, tv in truths:
-                z = (par["value"] - tv) / se if se > 0 else float("inf")
-                rows.setdefault(label, []).append(
-                    dict(seed=seed, truth=tv, value=par["value"], lo=lo, hi=hi, z=z,
-                         rel=(par["value"] - tv) / tv if tv else float("nan")))
+            for row, pname, truth in truths_of(fnd["effect"], meta):
+                par = fnd["parameters"].get(pname)
+                # A parameter held equal to another is that one's value, not a measurement.
+                if par is None or par.get("tied_to"):
+                    continue
+                lo, hi = par["ci95"]
+                se = (hi - lo) / 3.92
+                truths = [(row, truth)]
+                if fnd["effect"] == "gas_spring":
+                    line = gas_line_stiffness(meta, os.path.join(d, f"seed{seed:04d}.csv"))
+                    truths = [("gas_spring (line over the record)", line),
+                              ("gas_spring (stiffness at x = 0)", truth)]
+                for label, tv in truths:
+                    z = (par["value"] - tv) / se if se > 0 else float("inf")
+                    rows.setdefault(label, []).append(
+                        dict(seed=seed, truth=tv, value=par["value"], lo=lo, hi=hi, z=z,
+                             rel=(par["value"] - tv) / tv if tv else float("nan")))
     print("| effect (parameter) | found with a clean truth | 95 % interval holds it | "
           "Wilson 95 % | median \\|z\\| | median \\|error\\| / truth | interval factor for 95 % |")
     print("|---|---:|---:|---|---:|---:|---:|")
