@@ -710,14 +710,56 @@ fn an_accepted_thermal_softening_frees_its_viscous_softening() {
     );
 }
 
+/// A bi-viscous fluid whose baseline a hidden effect led to the wrong basin is moved to its
+/// own once that effect is found (proving-ground seed 745: viscosity ratio 425, a gas
+/// spring and an exponential thermal softening hidden, random strokes at 200 Hz). Without
+/// the gas spring in, the baseline takes the absolute-leak basin (a 10.5 mm/s leak, the
+/// knots' c at their floor, speed curvatures of −15 and −25 kN). Once the gas spring is
+/// found, the model is refitted from the relative-leak basin
+/// (diagnose::model::relative_leak_basin): its λ comes out near the fluid's inverse
+/// viscosity ratio, the held-out blocks fall from 6.4 σ_F, and the softening, hidden
+/// behind the misfit before, is found.
+#[test]
+fn a_fluid_led_to_the_wrong_basin_by_a_hidden_effect_is_moved_once_that_effect_is_found() {
+    let (m, d) = generate_and_diagnose(745);
+    assert_eq!(
+        hidden_effects(&m),
+        ["gas_spring", "thermal_softening"],
+        "the scenario changed"
+    );
+    assert_eq!(m["fluid"]["law"], "biviscous", "the scenario changed");
+    let lambda = |model: &str| d[model]["leak_per_yield_velocity"].as_f64().unwrap();
+    assert_eq!(
+        lambda("baseline_parameters"),
+        0.0,
+        "the baseline is no longer in the absolute-leak basin: this test no longer tests \
+         the move"
+    );
+    assert_eq!(found_effects(&d), ["gas_spring", "thermal_softening"]);
+    let inverse_ratio = 1.0 / m["fluid"]["visc_ratio"].as_f64().unwrap();
+    let fitted = lambda("final_parameters");
+    eprintln!("λ {fitted} against 1/r = {inverse_ratio}");
+    assert!(
+        (0.5..2.0).contains(&(fitted / inverse_ratio)),
+        "λ {fitted} against 1/r = {inverse_ratio}"
+    );
+    let sigma_f = m["sigma_F_N"].as_f64().unwrap();
+    let held_out = d["final"]["holdout_rmse_N"].as_f64().unwrap() / sigma_f;
+    assert!(held_out < 2.0, "final held-out {held_out:.2} σ_F");
+}
+
 /// A gas spring and a fluid mass that cancel when fitted one at a time (proving-ground seed
 /// 141: sines at 6.4, 5.3 and 1.9 Hz, a = −ω² x, with 65 N/mm of gas and 42 kg of gap
 /// fluid hidden beside a coil-driver field lag). Alone, the mass fitted 0 kg and the gas
 /// 12 N/mm, neither passed, and a false seal friction took part of what they left; fitted
-/// as the pair `gas_spring+fluid_inertia` (diagnose::select::PAIRS) both are found at
-/// their generated values.
+/// as the pair `gas_spring+fluid_inertia` (diagnose::select::PAIRS) both were found at
+/// their generated values, the pair accepted in round 2. Since session 87 the model is
+/// refitted in the relative-leak basin once the lag is in (held-out 373 → 266 N;
+/// diagnose::model::relative_leak_basin), and from there the gas passes alone in round 2
+/// and the mass in round 3, at values closer to the generator's. The pair passes its four
+/// rules in round 1 all the same.
 #[test]
-fn a_gas_spring_and_a_mass_that_cancel_alone_are_found_as_a_pair() {
+fn a_gas_spring_and_a_mass_that_cancel_alone_are_both_found() {
     let (m, d) = generate_and_diagnose(141);
     let hidden = hidden_effects(&m);
     assert_eq!(
@@ -726,12 +768,12 @@ fn a_gas_spring_and_a_mass_that_cancel_alone_are_found_as_a_pair() {
         "the scenario changed"
     );
     assert_eq!(found_effects(&d), hidden, "findings {}", d["findings"]);
-    let pair_accepted = d["trials"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .any(|t| t["effect"] == "gas_spring+fluid_inertia" && t["accepted"] == true);
-    assert!(pair_accepted, "the pair was not what was accepted");
+    let pair_passes = d["trials"].as_array().unwrap().iter().any(|t| {
+        t["effect"] == "gas_spring+fluid_inertia"
+            && t["round"] == 1
+            && t["passed"].as_array().unwrap().iter().all(|p| p == true)
+    });
+    assert!(pair_passes, "the pair does not pass its rules in round 1");
     let truth = |effect: &str, key: &str| {
         entry_of(&m["effects"], effect)["parameters"][key]
             .as_f64()

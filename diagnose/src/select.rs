@@ -1644,6 +1644,9 @@ fn forward_selection(
         }
         let shaped = free_chamber_shape(d, &best.judged.fit, best.calibrated.as_ref());
         sel.current = free_thermal_apart(d, &shaped, best.calibrated.as_ref());
+        if let Some(rebased) = crate::model::relative_leak_basin(d, &sel.current) {
+            sel.current = rebased;
+        }
     }
     // Ties pending after the last round: test the other on top of the final model.
     for (winner, other) in pending_ties.drain(..) {
