@@ -247,6 +247,10 @@ impl TwinNodeParams {
         };
         let fluid = &self.two_chamber.fluid;
         check_laws_in_current(fluid)?;
+        non_negative(
+            "conditioning.acceleration_window_s",
+            self.conditioning.acceleration_window_s,
+        )?;
         non_negative("two_chamber.fluid.pre_yield_leak", fluid.pre_yield_leak)?;
         non_negative("two_chamber.fluid.current_range_a", fluid.current_range_a)?;
         non_negative("two_chamber.fluid.yield_step_share", fluid.yield_step_share)?;

@@ -12,7 +12,8 @@ use twin::models::{build, ModelKind, ModelParams, UnsupportedEffects};
 use twin::{DamperInput, DamperModel, DamperOutput, Effect, EffectSet};
 
 use crate::conditioning::{
-    Accepted, Conditioner, ConditioningConfig, Dropped, SensorSample, StreamCounters,
+    AccelerationEstimator, Accepted, Conditioner, ConditioningConfig, Dropped, SensorSample,
+    StreamCounters,
 };
 
 /// What the pipeline runs.
@@ -84,6 +85,8 @@ pub struct TwinPipeline {
     estimator: Option<YieldEstimator>,
     health: HealthMonitor,
     last_input: Option<DamperInput>,
+    /// The rod acceleration from the measured velocity (`conditioning.acceleration_window_s`).
+    acceleration: AccelerationEstimator,
     rod_area_m2: Option<f64>,
     /// Worst health level after the last sample.
     level: Level,
@@ -114,6 +117,7 @@ impl TwinPipeline {
             model,
             estimator,
             last_input: None,
+            acceleration: AccelerationEstimator::new(cfg.conditioning.acceleration_window_s),
             rod_area_m2,
             level: Level::Stale,
             solver_failures: 0,
@@ -198,7 +202,7 @@ impl TwinPipeline {
 
     fn input_of(&self, s: &SensorSample, dt: Option<f64>) -> DamperInput {
         let acceleration_m_s2 = match (dt, self.last_input) {
-            (Some(dt), Some(prev)) if dt > 0.0 => (s.velocity_m_s - prev.velocity_m_s) / dt,
+            (Some(dt), Some(_)) if dt > 0.0 => self.acceleration.at(s.time_s, s.velocity_m_s),
             _ => 0.0,
         };
         DamperInput {
@@ -243,11 +247,14 @@ impl TwinPipeline {
                 let input = self.input_of(s, None);
                 self.model.reset(&input);
                 self.last_input = Some(input);
+                self.acceleration.reset();
+                self.acceleration.push(s.time_s, s.velocity_m_s);
                 self.model.step(&input, 0.0)
             }
             Accepted::Step { dt } => {
                 let input = self.input_of(s, Some(dt));
                 self.last_input = Some(input);
+                self.acceleration.push(s.time_s, s.velocity_m_s);
                 self.model.step(&input, dt)
             }
         };
