@@ -304,11 +304,14 @@ impl Layout {
             .chain(self.held_curvature.iter().map(move |k| icv + k))
             .chain(self.held_yield.iter().copied())
             .chain(shape)
-            .chain(
-                self.index(Effect::ThermalSoftening)
-                    .filter(|_| !self.thermal_apart)
-                    .map(|k| k + 1),
-            )
+            .chain(self.tied_viscous_softening())
+    }
+    /// Index of a thermal softening's viscous slot while it is tied to the yield force's
+    /// (held, its value unused: [`Layout::value_slot`]).
+    fn tied_viscous_softening(&self) -> Option<usize> {
+        self.index(Effect::ThermalSoftening)
+            .filter(|_| !self.thermal_apart)
+            .map(|k| k + 1)
     }
     /// Number of parameters the fit moves ([`Layout::len`] less the held ones).
     pub fn free_len(&self) -> usize {
@@ -326,8 +329,7 @@ impl Layout {
     /// Number of parameters the model has: [`Layout::len`] less a thermal softening's
     /// viscous slot while it is tied to the yield force's (its value is not used).
     pub fn model_len(&self) -> usize {
-        self.len()
-            - usize::from(self.index(Effect::ThermalSoftening).is_some() && !self.thermal_apart)
+        self.len() - usize::from(self.tied_viscous_softening().is_some())
     }
     /// Number of baseline parameters (knots, offset, leaks, curvature per knot).
     pub fn base_len(&self) -> usize {
@@ -599,7 +601,7 @@ fn evaluate_at(d: &Prepared, inp: &Channels, lay: &Layout, theta: &[f64], jac: b
             None => (1.0, 0.0),
         };
         // The viscous terms' own softening, or the yield force's while they are tied.
-        let ic = ith.map(|b| if lay.thermal_apart { b + 1 } else { b });
+        let ic = ith.map(|b| b + lay.value_slot(Effect::ThermalSoftening, 1));
         let scale_c = match ic {
             Some(q) if lay.thermal_apart => (1.0 - theta[q] * inp.energy_kj[j]).max(0.05),
             _ => scale,

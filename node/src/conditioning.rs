@@ -152,9 +152,9 @@ impl AccelerationEstimator {
         }
     }
 
-    /// [`AccelerationEstimator::at`], keeping the sample.
-    pub fn push(&mut self, t: f64, v: f64) -> f64 {
-        let a = self.at(t, v);
+    /// Keep the sample (`t`, `v`), after [`AccelerationEstimator::at`] has given its
+    /// acceleration.
+    pub fn push(&mut self, t: f64, v: f64) {
         self.recent.push_back((t, v));
         while self.recent.len() > ACCELERATION_MAX_SAMPLES
             || self
@@ -164,7 +164,6 @@ impl AccelerationEstimator {
         {
             self.recent.pop_front();
         }
-        a
     }
 }
 
@@ -419,16 +418,23 @@ mod tests {
     use rand::SeedableRng;
     use rand_distr::{Distribution, Normal};
 
+    /// The acceleration at (`t`, `v`), then the sample kept, as the pipeline does per sample.
+    fn step(a: &mut AccelerationEstimator, t: f64, v: f64) -> f64 {
+        let at = a.at(t, v);
+        a.push(t, v);
+        at
+    }
+
     /// With a window of 0 the estimate is the difference of the last two samples, bit for
     /// bit; a reset forgets the samples kept.
     #[test]
     fn a_zero_acceleration_window_is_the_difference_of_two_samples() {
         let mut a = AccelerationEstimator::new(0.0);
-        assert_eq!(a.push(0.0, 0.3), 0.0, "no sample kept yet");
+        assert_eq!(step(&mut a, 0.0, 0.3), 0.0, "no sample kept yet");
         let v = [0.3, 0.31, 0.335, 0.33];
         for k in 1..v.len() {
             let (t0, t1) = ((k - 1) as f64 * 1e-3, k as f64 * 1e-3);
-            assert_eq!(a.push(t1, v[k]), (v[k] - v[k - 1]) / (t1 - t0));
+            assert_eq!(step(&mut a, t1, v[k]), (v[k] - v[k - 1]) / (t1 - t0));
         }
         a.reset();
         assert_eq!(a.at(1.0, 0.5), 0.0);
@@ -444,7 +450,7 @@ mod tests {
         let mut last = 0.0;
         for k in 0..200 {
             let t = k as f64 * dt;
-            last = ramp.push(t, 0.1 + accel * t);
+            last = step(&mut ramp, t, 0.1 + accel * t);
         }
         assert!((last / accel - 1.0).abs() < 1e-9, "{last}");
         let mut rng = rand::rngs::StdRng::seed_from_u64(7);
@@ -457,7 +463,7 @@ mod tests {
         for k in 0..20_000 {
             let t = k as f64 * dt;
             let v = 0.1 + accel * t + noise.sample(&mut rng);
-            let (w, d) = (windowed.push(t, v), difference.push(t, v));
+            let (w, d) = (step(&mut windowed, t, v), step(&mut difference, t, v));
             if k >= 100 {
                 sw += (w - accel).powi(2);
                 sd += (d - accel).powi(2);
