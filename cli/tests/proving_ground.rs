@@ -6,12 +6,9 @@
 
 use std::time::Duration;
 
-use mrtwin_tests::{read_json, repo_root, run, run_python, succeeded, TempDir};
-
-/// Runs a Python script file with arguments (through `python -c`, so the interop venv's
-/// time limit and output draining apply).
-const RUN_FILE: &str =
-    "import runpy, sys; sys.argv = sys.argv[1:]; runpy.run_path(sys.argv[0], run_name='__main__')";
+use mrtwin_tests::{
+    generate_scenario, read_json, repo_root, run, run_python, succeeded, TempDir, RUN_FILE,
+};
 
 /// The simulator's own physics checks (`check_generator.py --quick`): slit-flow limits and
 /// closed forms, compressible chambers tending to the incompressible force as K → ∞ (the
@@ -187,7 +184,7 @@ fn generate_and_diagnose_as(
         "pg-seed{seed}{}",
         if null_twin { "-twin" } else { "" }
     ));
-    let (csv, meta) = generate_into(&dir, seed, null_twin);
+    let (csv, meta) = generate_scenario(&dir, seed, null_twin);
     let json = dir.path("d.json");
     let (report, residuals) = (dir.path("d.md"), dir.path("r.residuals.csv"));
     let mut diagnose_args = vec![
@@ -207,32 +204,6 @@ fn generate_and_diagnose_as(
     );
     let residuals = std::fs::read_to_string(&residuals).expect("diagnose wrote its residuals");
     (read_json(&meta), read_json(&json), residuals)
-}
-
-/// Generates scenario `seed` (or its null twin) into `dir` with the independent Python
-/// simulator: the recording's and the meta JSON's paths.
-fn generate_into(
-    dir: &TempDir,
-    seed: u32,
-    null_twin: bool,
-) -> (std::path::PathBuf, std::path::PathBuf) {
-    let generate = repo_root().join("scripts/proving_ground/generate.py");
-    let (csv, meta) = (dir.path("r.csv"), dir.path("r.meta.json"));
-    let seed_arg = seed.to_string();
-    let mut args = vec![
-        generate.to_str().unwrap(),
-        "--seed",
-        &seed_arg,
-        "--out",
-        csv.to_str().unwrap(),
-        "--meta",
-        meta.to_str().unwrap(),
-    ];
-    if null_twin {
-        args.push("--null-twin");
-    }
-    run_python(RUN_FILE, &args, Duration::from_secs(300));
-    (csv, meta)
 }
 
 /// [`generate_and_diagnose`] for a scenario that must be a null (nothing hidden).
@@ -754,77 +725,6 @@ fn a_fluid_led_to_the_wrong_basin_by_a_hidden_effect_is_moved_once_that_effect_i
     let sigma_f = m["sigma_F_N"].as_f64().unwrap();
     let held_out = d["final"]["holdout_rmse_N"].as_f64().unwrap() / sigma_f;
     assert!(held_out < 2.0, "final held-out {held_out:.2} σ_F");
-}
-
-/// The closed loop on an independent record whose velocity a rig measured with noise
-/// (proving-ground seed 433: 5 kHz, a velocity sensor with 1.5 % noise, a 78 kg moving
-/// mass and a thermal softening hidden). `mrtwin fit`, then `diagnose --params
-/// --write-params`, then `replay` of both twins. diagnose finds the mass, and the upgraded
-/// twin takes it as its fluid inertia, whose acceleration the node reads as the
-/// least-squares slope of the last 5 ms of velocity (node::conditioning::
-/// AccelerationEstimator). With the difference of two samples the twin's `m a` was mostly
-/// noise: it replayed at 80.9 N against the fitted twin's 81.6 N. Now 40.6 N.
-#[test]
-fn the_upgraded_twin_uses_the_mass_diagnose_finds_behind_a_noisy_velocity() {
-    let dir = TempDir::new("pg-chain-433");
-    let (csv, meta) = generate_into(&dir, 433, false);
-    let m = read_json(&meta);
-    assert_eq!(
-        m["measurement"]["velocity"], "sensor",
-        "the scenario changed"
-    );
-    let bin = env!("CARGO_BIN_EXE_mrtwin");
-    let (twin, upgraded, json) = (
-        dir.path("twin.yaml"),
-        dir.path("up.yaml"),
-        dir.path("d.json"),
-    );
-    let p = |x: &std::path::Path| x.to_str().unwrap().to_string();
-    succeeded(
-        run(bin, &["fit", &p(&csv), "--out", &p(&twin)]),
-        "mrtwin fit",
-    );
-    succeeded(
-        run(
-            bin,
-            &[
-                "diagnose",
-                &p(&csv),
-                "--params",
-                &p(&twin),
-                "--write-params",
-                &p(&upgraded),
-                "--json",
-                &p(&json),
-            ],
-        ),
-        "mrtwin diagnose --params --write-params",
-    );
-    assert!(
-        found_effects(&read_json(&json)).contains(&"fluid_inertia"),
-        "diagnose no longer finds the mass: this test no longer tests the twin's use of it"
-    );
-    let replay = |params: &std::path::Path, tag: &str| {
-        let out = dir.path(&format!("replay-{tag}.csv"));
-        succeeded(
-            run(
-                bin,
-                &[
-                    "replay",
-                    &p(&csv),
-                    "--params",
-                    &p(params),
-                    "--out",
-                    &p(&out),
-                ],
-            ),
-            "mrtwin replay",
-        );
-        mrtwin_tests::rms_finite(&mrtwin_tests::csv_column(&out, "residual_N"))
-    };
-    let (fitted, up) = (replay(&twin, "twin"), replay(&upgraded, "upgraded"));
-    eprintln!("replay RMS {fitted:.2} → {up:.2} N");
-    assert!(up < 0.6 * fitted, "replay RMS {fitted} → {up} N");
 }
 
 /// A gas spring and a fluid mass that cancel when fitted one at a time (proving-ground seed

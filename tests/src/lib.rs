@@ -126,6 +126,35 @@ pub fn run_python_env(
     run_bounded(cmd, "python", timeout)
 }
 
+/// Runs a Python script file with arguments (through `python -c`, so the interop venv's
+/// time limit and output draining apply): `run_python(RUN_FILE, &[file, args…], …)`.
+pub const RUN_FILE: &str =
+    "import runpy, sys; sys.argv = sys.argv[1:]; runpy.run_path(sys.argv[0], run_name='__main__')";
+
+/// Generates proving-ground scenario `seed` (or, with `null_twin`, the same damper,
+/// excitation and measurement with nothing hidden) into `dir` with the independent Python
+/// simulator (`scripts/proving_ground/generate.py`): the recording's and its meta JSON's
+/// paths.
+pub fn generate_scenario(dir: &TempDir, seed: u32, null_twin: bool) -> (PathBuf, PathBuf) {
+    let generate = repo_root().join("scripts/proving_ground/generate.py");
+    let (csv, meta) = (dir.path("r.csv"), dir.path("r.meta.json"));
+    let seed_arg = seed.to_string();
+    let mut args = vec![
+        generate.to_str().unwrap(),
+        "--seed",
+        &seed_arg,
+        "--out",
+        csv.to_str().unwrap(),
+        "--meta",
+        meta.to_str().unwrap(),
+    ];
+    if null_twin {
+        args.push("--null-twin");
+    }
+    run_python(RUN_FILE, &args, std::time::Duration::from_secs(300));
+    (csv, meta)
+}
+
 /// The environment script of the natively built `mrtwin_msgs` (`scripts/setup-msgs.sh`):
 /// `$MRTWIN_MSGS_ENV`, else `<repo>/.msgs/env.sh`.
 pub fn msgs_env() -> PathBuf {
