@@ -73,11 +73,18 @@ pub fn seed_effect(
                 tc.gas_volume_m3 = tc.polytropic_index * tc.gas_preload_pa * ar * ar / si;
             }
         }
-        // m_f = ρ L A1² / (b h).
+        // m = m_f + m_r, m_f = ρ L A1² / (b h): what the gap fluid does not carry at its
+        // density is the rig's moving mass; a mass below the gap fluid's is its density.
         Effect::FluidInertia => {
             if si > 0.0 {
-                tc.fluid_density_kg_m3 =
-                    si * slit.width_m * slit.height_m / (slit.length_m * a1 * a1);
+                let m_f = tc.fluid_mass_kg();
+                if si >= m_f {
+                    tc.moving_mass_kg = si - m_f;
+                } else {
+                    tc.moving_mass_kg = 0.0;
+                    tc.fluid_density_kg_m3 =
+                        si * slit.width_m * slit.height_m / (slit.length_m * a1 * a1);
+                }
             }
         }
         Effect::FieldLag => tc.field_time_constant_s = si.max(1e-5),
@@ -378,7 +385,7 @@ fn calibrated_at_best_width(
 
 /// Calibrate the upgraded twin on `records`. When the records cannot identify a parameter
 /// of an effect the upgrade added (the twin's fit is not diagnose's: on UTFSM 10mm1Hz
-/// diagnose's fluid mass is resolved, the twin's `fluid_density_kg_m3` is not, against the
+/// diagnose's fluid mass is resolved, the twin's `moving_mass_kg` is not, against the
 /// chamber compliance at one frequency), that parameter is held at the value translated
 /// from diagnose's finding and the fit is made again; the held keys are returned (and
 /// written to the JSON). A base parameter that is not identifiable is an error as before.

@@ -723,17 +723,19 @@ fn bad_files_and_unidentifiable_fits_are_refused_and_nothing_is_written() {
 /// The closed loop on an independent record whose velocity a rig measured with noise
 /// (proving-ground seed 433: 5 kHz, a velocity sensor with 1.5 % noise, a 78 kg moving
 /// mass and a thermal softening hidden). diagnose finds the mass, and the upgraded twin
-/// takes it as its fluid inertia, whose acceleration the node reads as the least-squares
-/// slope of the last 5 ms of velocity (node::conditioning::AccelerationEstimator). With the
-/// difference of two samples the twin's `m a` was mostly noise: it replayed at 80.9 N
-/// against the fitted twin's 81.6 N. Now 40.6 N.
+/// takes it as the rig's moving mass beside its gap fluid's (`moving_mass_kg`, fitted at
+/// 76.5 kg; it was once a fluid density of 5.3·10⁵ kg/m³), whose acceleration the node
+/// reads as the least-squares slope of the last 5 ms of velocity
+/// (node::conditioning::AccelerationEstimator). With the difference of two samples the
+/// twin's `m a` was mostly noise: it replayed at 80.9 N against the fitted twin's 81.6 N.
+/// Now 40.6 N.
 #[test]
 fn the_upgraded_twin_uses_the_mass_diagnose_finds_behind_a_noisy_velocity() {
     let dir = TempDir::new("chain-pg-433");
     let (rec, meta) = generate_scenario(&dir, 433, false);
+    let meta = read_json(&meta);
     assert_eq!(
-        read_json(&meta)["measurement"]["velocity"],
-        "sensor",
+        meta["measurement"]["velocity"], "sensor",
         "the scenario changed"
     );
     let c = chain(&dir.path(""), &rec);
@@ -741,6 +743,28 @@ fn the_upgraded_twin_uses_the_mass_diagnose_finds_behind_a_noisy_velocity() {
         found(&c).contains(&"fluid_inertia".to_string()),
         "diagnose no longer finds the mass ({:?}): this test no longer tests the twin's use of it",
         found(&c)
+    );
+    // The generator's inertia: its rod's moving mass and its gap fluid's.
+    let generated = meta["effects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["effect"] == "fluid_inertia")
+        .map(|e| &e["parameters"])
+        .unwrap();
+    let generated_mass = generated["moving_mass_kg"].as_f64().unwrap()
+        + generated["gap_fluid_mass_kg"].as_f64().unwrap();
+    let (twin, up) = (load(&c.twin), load(&c.upgraded));
+    let tc = &up.two_chamber;
+    assert_eq!(
+        tc.fluid_density_kg_m3, twin.two_chamber.fluid_density_kg_m3,
+        "the fluid keeps its density"
+    );
+    assert!(
+        (tc.inertial_mass_kg() / generated_mass - 1.0).abs() < 0.05,
+        "the twin's inertia {} kg (moving {} kg) against the generated {generated_mass} kg",
+        tc.inertial_mass_kg(),
+        tc.moving_mass_kg
     );
     eprintln!("replay RMS {:.2} → {:.2} N", c.twin_rms, c.upgraded_rms);
     assert!(

@@ -60,8 +60,9 @@ pub enum ParamKey {
     GasVolume,
     /// `two_chamber.seal_friction_n` (`seal_friction`).
     SealFriction,
-    /// `two_chamber.fluid_density_kg_m3` (`fluid_inertia`).
-    FluidDensity,
+    /// `two_chamber.moving_mass_kg` (`fluid_inertia`: the rig's moving mass beside the gap
+    /// fluid's, which keeps its density).
+    MovingMass,
     /// `two_chamber.field_time_constant_s` (`field_lag`).
     FieldTimeConstant,
     /// `two_chamber.heat_capacity_j_per_k` (`thermal_softening`).
@@ -177,7 +178,7 @@ impl ParamKey {
             ParamKey::BulkModulus => "two_chamber.bulk_modulus_pa".into(),
             ParamKey::GasVolume => "two_chamber.gas_volume_m3".into(),
             ParamKey::SealFriction => "two_chamber.seal_friction_n".into(),
-            ParamKey::FluidDensity => "two_chamber.fluid_density_kg_m3".into(),
+            ParamKey::MovingMass => "two_chamber.moving_mass_kg".into(),
             ParamKey::FieldTimeConstant => "two_chamber.field_time_constant_s".into(),
             ParamKey::HeatCapacity => "two_chamber.heat_capacity_j_per_k".into(),
             ParamKey::DriverLag => "conditioning.driver_lag_s".into(),
@@ -203,7 +204,7 @@ impl ParamKey {
             ParamKey::BulkModulus => t.bulk_modulus_pa,
             ParamKey::GasVolume => t.gas_volume_m3,
             ParamKey::SealFriction => t.seal_friction_n,
-            ParamKey::FluidDensity => t.fluid_density_kg_m3,
+            ParamKey::MovingMass => t.moving_mass_kg,
             ParamKey::FieldTimeConstant => t.field_time_constant_s,
             ParamKey::HeatCapacity => t.heat_capacity_j_per_k,
             ParamKey::DriverLag => cfg.conditioning.driver_lag_s,
@@ -229,7 +230,7 @@ impl ParamKey {
             ParamKey::BulkModulus => t.bulk_modulus_pa = v,
             ParamKey::GasVolume => t.gas_volume_m3 = v,
             ParamKey::SealFriction => t.seal_friction_n = v,
-            ParamKey::FluidDensity => t.fluid_density_kg_m3 = v,
+            ParamKey::MovingMass => t.moving_mass_kg = v,
             ParamKey::FieldTimeConstant => t.field_time_constant_s = v,
             ParamKey::HeatCapacity => t.heat_capacity_j_per_k = v,
             ParamKey::DriverLag => cfg.conditioning.driver_lag_s = v,
@@ -248,7 +249,6 @@ impl ParamKey {
                 | ParamKey::BulkModulus
                 | ParamKey::GasVolume
                 | ParamKey::SealFriction
-                | ParamKey::FluidDensity
                 | ParamKey::FieldTimeConstant
                 | ParamKey::HeatCapacity
                 | ParamKey::DriverLag
@@ -393,7 +393,14 @@ fn two_chamber_keys(
                 ParamKey::GasVolume
             }
             Effect::SealFriction => ParamKey::SealFriction,
-            Effect::FluidInertia => ParamKey::FluidDensity,
+            Effect::FluidInertia => {
+                notes.push(
+                    "fluid_inertia: the gap fluid's mass and a rig's moving mass are one \
+                     `m a`; the fluid keeps its density and the moving mass is fitted"
+                        .into(),
+                );
+                ParamKey::MovingMass
+            }
             Effect::FieldLag => ParamKey::FieldTimeConstant,
             Effect::ThermalSoftening => {
                 notes.push(

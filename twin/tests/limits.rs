@@ -102,6 +102,49 @@ fn incompressible_model_is_the_analytic_bingham_damper() {
     }
 }
 
+/// With `fluid_inertia` the incompressible model is the analytic damper plus the gap
+/// fluid's mass ρ L A1²/(b h) and the rig's moving mass times the acceleration the stand
+/// drives (−ω² x on a sinusoid), sample for sample.
+#[test]
+fn fluid_inertia_adds_the_gap_fluids_and_the_moving_mass_times_the_acceleration() {
+    let params = TwoChamberParams {
+        moving_mass_kg: 25.0,
+        ..TwoChamberParams::default()
+    };
+    let effects = EffectSet::NONE
+        .with(Effect::GasSpring)
+        .with(Effect::FluidInertia);
+    let mut m = TwoChamber::new(params.clone(), effects);
+    let s = run(&mut m, &programme(0.01, 3.33, 1.0, 0.6, 1000.0), None);
+    let pk = peak(&s);
+    let b = 2.0 * std::f64::consts::PI * params.gap_mean_radius_m;
+    let a1 = params.annulus_area();
+    let gap_fluid = params.fluid_density_kg_m3 * params.gap_active_length_m * a1 * a1
+        / (b * params.gap_height_m);
+    let mut largest_inertia = 0.0f64;
+    for smp in &s {
+        let inertia = (gap_fluid + 25.0) * smp.input.acceleration_m_s2;
+        largest_inertia = largest_inertia.max(inertia.abs());
+        let analytic = incompressible_bingham_force(
+            &params,
+            smp.input.displacement_m,
+            smp.input.velocity_m_s,
+            1.0,
+        ) + inertia;
+        assert!(
+            (smp.output.force_n - analytic).abs() < 1e-6 * pk,
+            "t={} {} vs {analytic}",
+            smp.time_s,
+            smp.output.force_n
+        );
+    }
+    // 25.4 kg at ω² x = 4.4 m/s²: over 100 N, well above the tolerance.
+    assert!(
+        largest_inertia > 1e-3 * pk,
+        "inertia {largest_inertia} N of {pk} N"
+    );
+}
+
 /// Laws in current with five coefficients (a quartic, as `mrtwin fit` writes for five
 /// current levels) give the analytic damper with τ_y and μ summed term by term, and above
 /// `current_range_a` the laws are held at their value there: the force at 1.2 A equals the

@@ -19,8 +19,10 @@
 //! * `gas_spring` off: chamber 2 opens into an ideal compensator at zero gauge pressure
 //!   (p2 ≡ 0), so there is neither preload nor gas stiffness.
 //! * `seal_friction`: F_f = F_c tanh(v / v_s).
-//! * `fluid_inertia`: F_i = m_f a, m_f = ρ L A1² / (b h), the fluid in the gap moving at
-//!   Q/(b h) with Q = A1 v (its incompressible-limit form).
+//! * `fluid_inertia`: F_i = (m_f + m_r) a, m_f = ρ L A1² / (b h), the fluid in the gap
+//!   moving at Q/(b h) with Q = A1 v (its incompressible-limit form), and m_r the rigid
+//!   mass moving between the load cell and the piston (rod, clevis, fixture), which a rig's
+//!   load cell reads as the same `m a`: the two are one lumped inertia.
 //! * `field_lag`: the fluid feels an effective current with τ_f İ_eff = I − I_eff.
 //! * `thermal_softening`: lumped heat balance C Ṫ = P − G_th (T − T_amb) driven by the
 //!   dissipated power P = QΔp + F_f v; τ_y falls linearly and μ exponentially with T
@@ -206,6 +208,9 @@ pub struct TwoChamberParams {
     pub seal_friction_velocity_m_s: f64,
     /// Fluid density \[kg/m³\] (`fluid_inertia`).
     pub fluid_density_kg_m3: f64,
+    /// Rigid mass moving between the load cell and the piston m_r \[kg\] (`fluid_inertia`,
+    /// beside the gap fluid's: a rig's rod, clevis and fixture). Default 0.
+    pub moving_mass_kg: f64,
     /// Field time constant τ_f \[s\] (`field_lag`).
     pub field_time_constant_s: f64,
     /// Lumped heat capacity of fluid and body \[J/K\] (`thermal_softening`).
@@ -239,6 +244,7 @@ impl Default for TwoChamberParams {
             seal_friction_n: 20.0,
             seal_friction_velocity_m_s: 1.0e-3,
             fluid_density_kg_m3: 3090.0,
+            moving_mass_kg: 0.0,
             field_time_constant_s: 0.010,
             heat_capacity_j_per_k: 300.0,
             heat_loss_w_per_k: 1.5,
@@ -278,6 +284,10 @@ impl TwoChamberParams {
         let s = self.slit();
         self.fluid_density_kg_m3 * s.length_m * self.annulus_area().powi(2)
             / (s.width_m * s.height_m)
+    }
+    /// The inertia the load cell reads with `fluid_inertia`, m_f + m_r \[kg\].
+    pub fn inertial_mass_kg(&self) -> f64 {
+        self.fluid_mass_kg() + self.moving_mass_kg
     }
     /// Gap flow law at current `i` and temperature `t`.
     pub fn flow_at(&self, i: f64, t: f64) -> SlitFlow {
@@ -494,7 +504,7 @@ impl TwoChamber {
         };
         let ff = self.seal_friction(inp.velocity_m_s) + self.yield_step(inp.velocity_m_s, flow);
         let inertia = if self.effects.has(Effect::FluidInertia) {
-            p.fluid_mass_kg() * inp.acceleration_m_s2
+            p.inertial_mass_kg() * inp.acceleration_m_s2
         } else {
             0.0
         };
