@@ -2225,7 +2225,18 @@ pub fn diagnose_with_progress(
     } else {
         (sel.current, Vec::new())
     };
-    let current = final_refit(&d, &base, current);
+    let mut withdrawn = withdrawn;
+    let mut current = final_refit(&d, &base, current);
+    if opts.selector == Selector::Calibrated && std::env::var_os("MRTWIN_REPLICATED").is_some() {
+        current = withdraw_unreplicated(
+            &d,
+            &base,
+            current,
+            &mut sel.accepted,
+            &sel.undecided_effects,
+            &mut withdrawn,
+        );
+    }
     let findings = findings(&d, &sel.accepted, &sel.undecided_effects, &current);
     let r_final = residual(&d, &current.force);
     let unexplained = unexplained(&d, &r_final);
@@ -2378,11 +2389,32 @@ fn free_thermal_apart(d: &Prepared, fit: &Fit, cal: Option<&CalibratedEvidence>)
 /// Whether effect `e`'s parameter in `fit` is physical with a 95 % interval clear of its
 /// no-effect value (rule 3).
 fn interval_clear(d: &Prepared, fit: &Fit, e: Effect) -> bool {
+    interval_clear_widened(d, fit, None, e)
+}
+
+/// [`interval_clear`] with each standard error widened by the spread between `fit` and
+/// `halves` (the same model refitted on the held-out blocks, [`holdout_refit`]): the 95 %
+/// interval the report gives ([`effect_parameters_with_halves`]).
+fn interval_clear_widened(d: &Prepared, fit: &Fit, halves: Option<&Fit>, e: Effect) -> bool {
     let Some(k) = fit.layout.index(e) else {
         return false;
     };
+    let spread = |i: usize| {
+        halves
+            .filter(|h| h.layout.index(e) == Some(k))
+            .map(|h| {
+                let (a, b, sa, sb) = (fit.theta[i], h.theta[i], fit.se[i], h.se[i]);
+                let excess = ((a - b).powi(2) - sa * sa - sb * sb) / 2.0;
+                if excess.is_finite() {
+                    excess.max(0.0).sqrt()
+                } else {
+                    0.0
+                }
+            })
+            .unwrap_or(0.0)
+    };
     let clear = effect_params(e).iter().enumerate().any(|(q, info)| {
-        let (v, se) = (fit.theta[k + q], fit.se[k + q]);
+        let (v, se) = (fit.theta[k + q], fit.se[k + q].hypot(spread(k + q)));
         let excludes = v - 1.96 * se > info.no_effect || v + 1.96 * se < info.no_effect;
         let physical = info.sign == 0.0 || (v - info.no_effect) * info.sign > 0.0;
         se.is_finite() && excludes && physical
@@ -2503,22 +2535,7 @@ fn prune(
         current.layout.index(*e).is_some() && !interval_clear(d, &current, *e)
     }) {
         let (e, _, _) = accepted.remove(pos);
-        let mut lay = current.layout.clone();
-        lay.effects.retain(|x| *x != e);
-        let kept: Vec<(Effect, Vec<f64>)> = lay
-            .effects
-            .iter()
-            .filter(|x| base.layout.index(**x).is_none())
-            .filter_map(|&x| {
-                let k = current.layout.index(x)?;
-                Some((x, current.theta[k..k + effect_params(x).len()].to_vec()))
-            })
-            .collect();
-        let starts = [
-            extend(&current.layout, &current.theta, &lay, &[]),
-            extend(&base.layout, &base.theta, &lay, &kept),
-        ];
-        current = crate::model::fit_best_of(d, &lay, &starts);
+        current = refit_without(d, base, &current, e);
         withdrawn.push(format!(
             "{}: accepted in its round, but once the later effects were in its parameter's \
              95 % interval included the no-effect value; withdrawn and the model refitted",
@@ -2526,6 +2543,86 @@ fn prune(
         ));
     }
     (current, withdrawn)
+}
+
+/// `current` refitted without effect `e`: from its parameters without `e`, and from the
+/// baseline's with the remaining effects at their current values; the lower fitting SSE
+/// wins ([`prune`]).
+fn refit_without(d: &Prepared, base: &Fit, current: &Fit, e: Effect) -> Fit {
+    let mut lay = current.layout.clone();
+    lay.effects.retain(|x| *x != e);
+    let kept: Vec<(Effect, Vec<f64>)> = lay
+        .effects
+        .iter()
+        .filter(|x| base.layout.index(**x).is_none())
+        .filter_map(|&x| {
+            let k = current.layout.index(x)?;
+            Some((x, current.theta[k..k + effect_params(x).len()].to_vec()))
+        })
+        .collect();
+    let starts = [
+        extend(&current.layout, &current.theta, &lay, &[]),
+        extend(&base.layout, &base.theta, &lay, &kept),
+    ];
+    crate::model::fit_best_of(d, &lay, &starts)
+}
+
+/// Withdraw reported findings whose parameter the two halves of the record do not
+/// replicate: the 95 % interval widened by the halves' spread (the one the report gives)
+/// includes the no-effect value. The model is refitted without each and
+/// [`final_refit`] again.
+fn withdraw_unreplicated(
+    d: &Prepared,
+    base: &Fit,
+    mut current: Fit,
+    accepted: &mut Vec<(Effect, Evidence, Vec<BlockGain>)>,
+    undecided_effects: &[Effect],
+    withdrawn: &mut Vec<String>,
+) -> Fit {
+    loop {
+        let reported: Vec<Effect> = accepted
+            .iter()
+            .map(|(e, _, _)| *e)
+            .filter(|e| !undecided_effects.contains(e) && current.layout.index(*e).is_some())
+            .collect();
+        if reported.is_empty() {
+            return current;
+        }
+        let halves = holdout_refit(d, &current);
+        let Some(e) = reported
+            .into_iter()
+            .find(|e| !interval_clear_widened(d, &current, halves.as_ref(), *e))
+        else {
+            return current;
+        };
+        // A pair's two effects were accepted on the pair's evidence (they share it): the
+        // one left alone has none of its own.
+        let evidence = accepted.iter().find(|(x, _, _)| *x == e).map(|a| a.1.clone());
+        let gone: Vec<Effect> = accepted
+            .iter()
+            .filter(|(x, ev, _)| *x == e || Some(ev) == evidence.as_ref())
+            .map(|(x, _, _)| *x)
+            .collect();
+        accepted.retain(|(x, _, _)| !gone.contains(x));
+        for &g in &gone {
+            current = refit_without(d, base, &current, g);
+            withdrawn.push(if g == e {
+                format!(
+                    "{}: its parameter's 95 % interval, widened by the spread between the \
+                     record's two halves, included the no-effect value; withdrawn and the \
+                     model refitted",
+                    g.id()
+                )
+            } else {
+                format!(
+                    "{}: accepted as a pair with {}, which was withdrawn; withdrawn with it",
+                    g.id(),
+                    e.id()
+                )
+            });
+        }
+        current = final_refit(d, base, current);
+    }
 }
 
 /// The baseline's measurement and fluid-shape parameters (force offset, leaks, yield
