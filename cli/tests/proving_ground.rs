@@ -7,7 +7,8 @@
 use std::time::Duration;
 
 use mrtwin_tests::{
-    generate_scenario, read_json, repo_root, run, run_python, succeeded, TempDir, RUN_FILE,
+    entry_of, generate_scenario, read_json, repo_root, run, run_python, succeeded, TempDir,
+    RUN_FILE,
 };
 
 /// The simulator's own physics checks (`check_generator.py --quick`): slit-flow limits and
@@ -623,16 +624,6 @@ fn sorted_strings<'a>(values: impl Iterator<Item = &'a serde_json::Value>) -> Ve
     v
 }
 
-/// The entry of `effect` in a list of entries keyed by `"effect"` (a diagnosis's
-/// `findings`, a scenario's `effects`).
-fn entry_of<'a>(list: &'a serde_json::Value, effect: &str) -> &'a serde_json::Value {
-    list.as_array()
-        .unwrap()
-        .iter()
-        .find(|f| f["effect"] == effect)
-        .unwrap_or_else(|| panic!("no {effect} in {list}"))
-}
-
 /// A fitted parameter of a finding: its value and 95 % interval.
 fn finding_parameter(d: &serde_json::Value, effect: &str, name: &str) -> (f64, [f64; 2]) {
     let p = &entry_of(&d["findings"], effect)["parameters"][name];
@@ -730,9 +721,9 @@ fn a_fluid_led_to_the_wrong_basin_by_a_hidden_effect_is_moved_once_that_effect_i
 /// A pair whose split the record's halves do not replicate is withdrawn (proving-ground
 /// null 520: a bi-viscous fluid under sines of 1.6–7.3 Hz at 200 Hz, nothing hidden). The
 /// pair `gas_spring+fluid_inertia` is accepted in round 1 (its statistic 17.7 against its
-/// bootstrap null's 15.7), at 1.3 N/mm and 1.0 kg, each clear of zero on the fit's own interval; refitted on the
-/// held-out blocks it splits otherwise, and with that spread neither interval clears zero
-/// (diagnose::select::withdraw_unreplicated_pairs). Both are withdrawn and nothing is
+/// bootstrap null's 15.7), at 1.3 N/mm and 1.0 kg, each clear of zero on the fit's own
+/// interval; refitted on the held-out blocks it splits otherwise, and with that spread
+/// neither interval clears zero (diagnose::select::withdraw_unreplicated_pairs). Both are withdrawn and nothing is
 /// reported; before, both were reported on this null.
 #[test]
 fn a_pair_whose_split_the_records_halves_do_not_replicate_is_withdrawn() {

@@ -7,7 +7,8 @@ use std::path::{Path, PathBuf};
 use std::process::Output;
 
 use mrtwin_tests::{
-    csv_column, fitted_parameter, generate_scenario, read_json, rms_finite, succeeded, TempDir,
+    csv_column, entry_of, fitted_parameter, generate_scenario, read_json, rms_finite, succeeded,
+    TempDir,
 };
 use node::config::{TwinNodeParams, TWIN_NODE};
 
@@ -745,13 +746,7 @@ fn the_upgraded_twin_uses_the_mass_diagnose_finds_behind_a_noisy_velocity() {
         found(&c)
     );
     // The generator's inertia: its rod's moving mass and its gap fluid's.
-    let generated = meta["effects"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|e| e["effect"] == "fluid_inertia")
-        .map(|e| &e["parameters"])
-        .unwrap();
+    let generated = &entry_of(&meta["effects"], "fluid_inertia")["parameters"];
     let generated_mass = generated["moving_mass_kg"].as_f64().unwrap()
         + generated["gap_fluid_mass_kg"].as_f64().unwrap();
     let (twin, up) = (load(&c.twin), load(&c.upgraded));

@@ -524,18 +524,7 @@ fn effect_parameters_with_halves(
             let q = fit.layout.value_slot(e, slot);
             let v = fit.theta[k + q] * info.scale;
             let se = fit.se[k + q] * info.scale;
-            let spread = halves
-                .filter(|h| h.layout.index(e) == Some(k))
-                .map(|h| {
-                    let (b, se_b) = (h.theta[k + q] * info.scale, h.se[k + q] * info.scale);
-                    let excess = ((v - b).powi(2) - se * se - se_b * se_b) / 2.0;
-                    if excess.is_finite() {
-                        excess.max(0.0).sqrt()
-                    } else {
-                        0.0
-                    }
-                })
-                .unwrap_or(0.0);
+            let spread = halves_spread(fit, halves, e, k + q, info.scale);
             let wide = se.hypot(spread);
             out.insert(
                 info.name.to_string(),
@@ -551,6 +540,26 @@ fn effect_parameters_with_halves(
         }
     }
     out
+}
+
+/// The spread of parameter `i` of effect `e` between `fit` and `halves` (the same model
+/// refitted on the held-out blocks, [`holdout_refit`]) beyond both standard errors, in the
+/// parameter's units times `scale`: √max(0, ((a − b)² − se_a² − se_b²)/2); 0 without
+/// halves or where it is not finite.
+fn halves_spread(fit: &Fit, halves: Option<&Fit>, e: Effect, i: usize, scale: f64) -> f64 {
+    halves
+        .filter(|h| h.layout.index(e) == fit.layout.index(e))
+        .map(|h| {
+            let (a, se_a) = (fit.theta[i] * scale, fit.se[i] * scale);
+            let (b, se_b) = (h.theta[i] * scale, h.se[i] * scale);
+            let excess = ((a - b).powi(2) - se_a * se_a - se_b * se_b) / 2.0;
+            if excess.is_finite() {
+                excess.max(0.0).sqrt()
+            } else {
+                0.0
+            }
+        })
+        .unwrap_or(0.0)
 }
 
 /// The knots of `fit` whose `c V` (V the record's peak speed) or `F_y` exceed
@@ -2220,12 +2229,11 @@ pub fn diagnose_with_progress(
         Selector::Sindy => sindy_selection(&d, &reg, &base, opts),
         _ => forward_selection(&d, &reg, &base, opts, progress),
     };
-    let (current, withdrawn) = if opts.selector == Selector::Calibrated {
+    let (current, mut withdrawn) = if opts.selector == Selector::Calibrated {
         prune(&d, &base, sel.current, &mut sel.accepted)
     } else {
         (sel.current, Vec::new())
     };
-    let mut withdrawn = withdrawn;
     let mut current = final_refit(&d, &base, current);
     if opts.selector == Selector::Calibrated {
         current = withdraw_unreplicated_pairs(
@@ -2399,22 +2407,9 @@ fn interval_clear_widened(d: &Prepared, fit: &Fit, halves: Option<&Fit>, e: Effe
     let Some(k) = fit.layout.index(e) else {
         return false;
     };
-    let spread = |i: usize| {
-        halves
-            .filter(|h| h.layout.index(e) == Some(k))
-            .map(|h| {
-                let (a, b, sa, sb) = (fit.theta[i], h.theta[i], fit.se[i], h.se[i]);
-                let excess = ((a - b).powi(2) - sa * sa - sb * sb) / 2.0;
-                if excess.is_finite() {
-                    excess.max(0.0).sqrt()
-                } else {
-                    0.0
-                }
-            })
-            .unwrap_or(0.0)
-    };
     let clear = effect_params(e).iter().enumerate().any(|(q, info)| {
-        let (v, se) = (fit.theta[k + q], fit.se[k + q].hypot(spread(k + q)));
+        let spread = halves_spread(fit, halves, e, k + q, 1.0);
+        let (v, se) = (fit.theta[k + q], fit.se[k + q].hypot(spread));
         let excludes = v - 1.96 * se > info.no_effect || v + 1.96 * se < info.no_effect;
         let physical = info.sign == 0.0 || (v - info.no_effect) * info.sign > 0.0;
         se.is_finite() && excludes && physical
@@ -2588,19 +2583,24 @@ fn withdraw_unreplicated_pairs(
     undecided_effects: &[Effect],
     withdrawn: &mut Vec<String>,
 ) -> Fit {
+    // The effects accepted with `e`'s evidence, `e` among them: a pair's two effects are
+    // accepted together, with the pair's evidence.
+    let accepted_with = |accepted: &[(Effect, Evidence, Vec<BlockGain>)], e: Effect| {
+        let ev = accepted.iter().find(|(x, _, _)| *x == e).map(|a| &a.1);
+        accepted
+            .iter()
+            .filter(|(_, other, _)| Some(other) == ev)
+            .map(|(x, _, _)| *x)
+            .collect::<Vec<Effect>>()
+    };
     loop {
-        // A pair's two effects are accepted together, with the pair's evidence.
-        let paired = |e: Effect| {
-            let ev = accepted.iter().find(|(x, _, _)| *x == e).map(|a| &a.1);
-            accepted
-                .iter()
-                .any(|(x, other, _)| *x != e && Some(other) == ev)
-        };
         let pairs: Vec<Effect> = accepted
             .iter()
             .map(|(e, _, _)| *e)
             .filter(|e| {
-                !undecided_effects.contains(e) && current.layout.index(*e).is_some() && paired(*e)
+                !undecided_effects.contains(e)
+                    && current.layout.index(*e).is_some()
+                    && accepted_with(accepted, *e).len() > 1
             })
             .collect();
         if pairs.is_empty() {
@@ -2613,15 +2613,7 @@ fn withdraw_unreplicated_pairs(
         else {
             return current;
         };
-        let evidence = accepted
-            .iter()
-            .find(|(x, _, _)| *x == e)
-            .map(|a| a.1.clone());
-        let gone: Vec<Effect> = accepted
-            .iter()
-            .filter(|(_, ev, _)| Some(ev) == evidence.as_ref())
-            .map(|(x, _, _)| *x)
-            .collect();
+        let gone = accepted_with(accepted, e);
         accepted.retain(|(x, _, _)| !gone.contains(x));
         for &g in &gone {
             current = refit_without(d, base, &current, g);

@@ -155,6 +155,16 @@ pub fn generate_scenario(dir: &TempDir, seed: u32, null_twin: bool) -> (PathBuf,
     (csv, meta)
 }
 
+/// The entry of `effect` in a list of entries keyed by `"effect"` (a diagnosis's
+/// `findings`, a scenario's `effects`).
+pub fn entry_of<'a>(list: &'a serde_json::Value, effect: &str) -> &'a serde_json::Value {
+    list.as_array()
+        .unwrap()
+        .iter()
+        .find(|f| f["effect"] == effect)
+        .unwrap_or_else(|| panic!("no {effect} in {list}"))
+}
+
 /// The environment script of the natively built `mrtwin_msgs` (`scripts/setup-msgs.sh`):
 /// `$MRTWIN_MSGS_ENV`, else `<repo>/.msgs/env.sh`.
 pub fn msgs_env() -> PathBuf {
