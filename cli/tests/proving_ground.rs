@@ -723,8 +723,8 @@ fn a_fluid_led_to_the_wrong_basin_by_a_hidden_effect_is_moved_once_that_effect_i
 /// pair `gas_spring+fluid_inertia` is accepted in round 1 (its statistic 17.7 against its
 /// bootstrap null's 15.7), at 1.3 N/mm and 1.0 kg, each clear of zero on the fit's own
 /// interval; refitted on the held-out blocks it splits otherwise, and with that spread
-/// neither interval clears zero (diagnose::select::withdraw_unreplicated_pairs). Both are withdrawn and nothing is
-/// reported; before, both were reported on this null.
+/// neither interval clears zero (diagnose::select::withdraw_unreplicated_pairs). Both are
+/// withdrawn and nothing is reported; before, both were reported on this null.
 #[test]
 fn a_pair_whose_split_the_records_halves_do_not_replicate_is_withdrawn() {
     let (_, d) = generate_null_and_diagnose(520);
