@@ -732,15 +732,21 @@ fn evaluate_at(d: &Prepared, inp: &Channels, lay: &Layout, theta: &[f64], jac: b
         }
         // Yield softness: β F_y sgn v [(1 − e^{−r}) − min(r, 1)], r = |v|/v_ε, the
         // exponential approach minus the leak ramp's share of F_y (zero for |v| ≫ v_ε).
-        // Nothing to add when β is 0 and held (no term, no Jacobian column).
+        // Nothing to add when β is 0 and held (no term, no Jacobian column). Held at a
+        // value above 0 (a candidate's fit: `select::settled_baseline`), β has no column
+        // but the term still moves with F_y, c and the leak: their columns carry it
+        // (without it, a candidate fit on proving-ground seed 513, β held at 1, stopped
+        // at its first iteration, the F_y columns up to 100 % off at slow samples).
         if veps > 0.0 && (softness > 0.0 || (jac && lay.soft)) {
             let r = v.abs() / veps;
             let er = (-r).exp();
             let hr = (1.0 - er) - r.min(1.0);
             let sg = if v < 0.0 { -1.0 } else { 1.0 };
             total += softness * sg * fy * hr;
-            if jac && lay.soft {
-                jm[row + isf] += sg * fy * hr;
+            if jac {
+                if lay.soft {
+                    jm[row + isf] += sg * fy * hr;
+                }
                 // ∂/∂v_ε of the term, through r.
                 let dve = softness * sg * fy * (er - if r < 1.0 { 1.0 } else { 0.0 }) * (-r / veps);
                 for &(q, g) in &gfy {
@@ -2445,6 +2451,32 @@ mod tests {
         }
     }
 
+    /// A candidate's fit holds the baseline's yield softness (`select::settled_baseline`):
+    /// β has no column, but its term still moves with F_y, c and the leak, and their
+    /// columns must carry it (they did not: on proving-ground seed 513, β held at 1, a
+    /// candidate's fit stopped at its first iteration).
+    #[test]
+    fn jacobian_matches_finite_differences_with_the_yield_softness_held() {
+        let d = record();
+        let lay = Layout {
+            effects: Effect::ALL.to_vec(),
+            soft: false,
+            chamber_shape: true,
+            thermal_apart: true,
+            ..Layout::bare(d.knots.len())
+        };
+        // As in the test above: the yield softness at 0.3, a 4 mm/s leak, a relative leak
+        // of 0.05.
+        let mut theta = vec![
+            250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 12.0, 0.004, 0.05, 0.3, -20.0, 10.0, 30.0,
+        ];
+        theta.extend([
+            5e-8, 3e-4, 0.3, -0.4, 800.0, 15.0, 2e-4, 0.05, 0.12, 0.008, 0.5,
+        ]);
+        assert_eq!(theta[lay.softness_index()], 0.3);
+        check_jacobian(&d, &lay, &theta);
+    }
+
     /// A tied thermal softening is the one factor: its viscous slot is held and unused, the
     /// model is the free one with β_c = β_y, and it has one parameter fewer.
     #[test]
@@ -2520,11 +2552,14 @@ mod tests {
         check_jacobian(&d, &lay, &theta);
     }
 
+    /// The Jacobian of `evaluate` against central differences, column by column (a held
+    /// yield softness has no column: the fit does not move it).
     fn check_jacobian(d: &Prepared, lay: &Layout, theta: &[f64]) {
         let (d, lay) = (d.clone(), lay.clone());
         let ev = evaluate(&d, &lay, theta, true);
         let p = lay.len();
-        for q in 0..p {
+        let held_softness = (!lay.soft).then(|| lay.softness_index());
+        for q in (0..p).filter(|q| Some(*q) != held_softness) {
             let h = 1e-6 * theta[q].abs().max(1e-9);
             let mut tp = theta.to_vec();
             tp[q] += h;
