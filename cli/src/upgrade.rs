@@ -32,11 +32,52 @@ pub const FRICTION_WIDTHS: [f64; 2] = [0.01, 0.10];
 /// UTFSM records it converges to the same 13 mm/s from 1 and 6 mm/s (docs/fit.md).
 pub const YIELD_STEP_WIDTH_START: f64 = 0.10;
 
-/// Whether the twin can carry this part of the fluid's shape: a step that follows the
-/// yield force (`fluid.yield_step_share`). A step that follows the viscous coefficient has
-/// no counterpart in the twin's fluid laws and is not carried.
+/// Whether the twin carries this part of the fluid's shape as it is: a step that follows
+/// the yield force (`fluid.yield_step_share`).
 fn carried(shape: &FluidShape) -> bool {
     shape.follows == ShapeFollows::YieldForce && shape.share > 0.0
+}
+
+/// The fluid's step at reversal as the upgrade seeds the twin's yield step with it.
+#[derive(Debug, Clone, Copy)]
+struct StepSeed {
+    /// The step's share of the mean yield force, `fluid.yield_step_share`'s start.
+    share: f64,
+    /// Whether diagnose's step follows the viscous coefficient, which the twin has no
+    /// shape for: its yield step is the nearest one, tried and kept only where the
+    /// upgraded twin predicts its held-out blocks better with it than without.
+    nearest: bool,
+}
+
+/// The yield step the upgrade tries: diagnose's yield-scaled step as it is, or else its
+/// step that follows the viscous coefficient, as the same step height at the mean yield
+/// force of diagnose's final model (`knotK_yield_force_N`). UTFSM 5mm3Hz's step follows
+/// the viscous coefficient since the candidates' Jacobian carries a held yield softness
+/// (issue 10, session 90); without a step its upgraded twin replayed at 64.6 N against
+/// diagnose's final 46.9 N, with the nearest step 38.1 N.
+fn step_seed(dg: &Diagnosis) -> Option<StepSeed> {
+    let shapes = &dg.report.fluid_shape;
+    if let Some(s) = shapes.iter().find(|s| carried(s)) {
+        return Some(StepSeed {
+            share: s.share,
+            nearest: false,
+        });
+    }
+    let s = shapes
+        .iter()
+        .find(|s| s.follows == ShapeFollows::ViscousCoefficient && s.step_n > 0.0)?;
+    let knots: Vec<f64> = dg
+        .report
+        .final_parameters
+        .iter()
+        .filter(|(k, _)| k.starts_with("knot") && k.ends_with("_yield_force_N"))
+        .map(|(_, v)| *v)
+        .collect();
+    let mean_yield_force = knots.iter().sum::<f64>() / knots.len().max(1) as f64;
+    (mean_yield_force > 0.0).then(|| StepSeed {
+        share: s.step_n / mean_yield_force,
+        nearest: true,
+    })
 }
 
 /// The SI value of an effect's single parameter in a diagnose finding.
@@ -146,8 +187,9 @@ pub struct TwinCheck {
 }
 
 /// What the upgrade carries over from a diagnosis: each finding as the twin effect and its
-/// value in SI units, and the fluid's yield step when its shape follows the yield force.
-fn carried_over(dg: &Diagnosis) -> (Vec<(Effect, f64)>, Option<&FluidShape>) {
+/// value in SI units, and the fluid's step at reversal as the twin's yield step
+/// ([`step_seed`]).
+fn carried_over(dg: &Diagnosis) -> (Vec<(Effect, f64)>, Option<StepSeed>) {
     let found = dg
         .report
         .findings
@@ -157,15 +199,17 @@ fn carried_over(dg: &Diagnosis) -> (Vec<(Effect, f64)>, Option<&FluidShape>) {
             Some((e, si_value(e, &f.parameters)?))
         })
         .collect();
-    (found, dg.report.fluid_shape.iter().find(|s| carried(s)))
+    (found, step_seed(dg))
 }
 
-/// The fluid shapes diagnose found that the twin does not take (their explanations).
-fn not_carried(dg: &Diagnosis) -> Vec<&str> {
+/// The fluid shapes diagnose found that the twin does not take (their explanations): a
+/// step that follows the viscous coefficient unless the upgraded twin kept it as its
+/// nearest yield step (`nearest_kept`).
+fn not_carried(dg: &Diagnosis, nearest_kept: bool) -> Vec<&str> {
     dg.report
         .fluid_shape
         .iter()
-        .filter(|s| !carried(s))
+        .filter(|s| !carried(s) && !nearest_kept)
         .map(|s| s.explanation.as_str())
         .collect()
 }
@@ -183,6 +227,8 @@ pub fn write_upgraded(
     let config = params.pipeline_config()?;
     let (twin_rmse, _) = rms_residual(records, &predict(&config, records), |_, _| true);
     let (found, step) = carried_over(dg);
+    // A step the twin has no shape for is tried only where the twin has a yield step.
+    let step = step.filter(|st| !st.nearest || config.model == ModelKind::TwoChamber);
     // The effect ids added (JSON `added`), and what the upgrade adds in words.
     let added: Vec<&str> = found.iter().map(|(e, _)| e.id()).collect();
     let mut adds = added.clone();
@@ -206,7 +252,7 @@ pub fn write_upgraded(
         "diagnose_holdout_ratio": f / b,
         "diagnose_explained_variance_N2": explained,
         "predicted_replay_ratio": claim,
-        "fluid_shape_not_carried": not_carried(dg),
+        "fluid_shape_not_carried": not_carried(dg, false),
     });
     let Some(out) = out else {
         return Ok(TwinCheck {
@@ -256,8 +302,16 @@ pub fn write_upgraded(
         .iter()
         .fold(config.effects, |set: EffectSet, (e, _)| set.with(*e));
     let viscous = freed_viscous_softening_ratio(dg);
-    let (c, held, profile) =
-        calibrated_at_best_width(&config, (&found, viscous), step, effects, records)?;
+    let best = calibrated_at_best_width(&config, (&found, viscous), step, effects, records)?;
+    let (c, held, profile) = (best.calibrated, best.held, best.profile);
+    let step_kept = best.with_step;
+    if !step_kept {
+        adds.retain(|a| *a != "the fluid's yield step");
+    }
+    if adds.is_empty() {
+        adds.push("nothing (the fluid's step, tried as the twin's nearest yield step, did not predict the held-out blocks better)");
+    }
+    json["fluid_shape_not_carried"] = json!(not_carried(dg, step_kept && best.nearest.is_some()));
     // The full fit ran through the same pipeline on every sample: its RMS is the replay's.
     let up_rmse = c.full.rmse_n;
     let fitted = c.full.applied_to(&config);
@@ -288,7 +342,8 @@ pub fn write_upgraded(
     json["upgraded"] = json!({
         "file": out.display().to_string(),
         "added": added,
-        "yield_step_added": step.is_some(),
+        "yield_step_added": step_kept,
+        "nearest_yield_step": best.nearest,
         "effects": effects.to_string(),
         "replay_rmse_N": up_rmse,
         "replay_ratio": up_rmse / twin_rmse,
@@ -302,21 +357,35 @@ pub fn write_upgraded(
     })
 }
 
+/// The best calibration of the upgraded twin ([`calibrated_at_best_width`]).
+struct BestUpgrade {
+    calibrated: crate::fit::Calibrated,
+    /// The keys held at diagnose's value.
+    held: Vec<String>,
+    /// The held-out RMS at each seal-friction width tried (empty without a friction).
+    profile: Vec<Value>,
+    /// Whether the kept calibration has the fluid's yield step.
+    with_step: bool,
+    /// For a step tried as the nearest shape ([`StepSeed::nearest`]): the held-out RMS with
+    /// and without it (JSON `nearest_yield_step`), else null.
+    nearest: Option<Value>,
+}
+
 /// The upgraded twin calibrated on `records`: `config` with the `found` effects seeded from
 /// diagnose's values (a freed `viscous` softening too, as β_c/β_y; and the fluid's yield
-/// `step`, when carried) and switched on
+/// `step`) and switched on
 /// (`effects`). The twin's seal friction is a tanh step whose width the fit does not move
 /// (freed, it runs off against the leak and τ_y(0)): with a friction added, the upgrade is
 /// calibrated at each width of FRICTION_WIDTHS (a share of the record's peak speed) and the
-/// lowest held-out RMS is kept. Returns that calibration, the keys held at diagnose's
-/// value, and the held-out RMS at each width tried (empty without a friction).
+/// lowest held-out RMS is kept. A step that is only the nearest shape is tried with and
+/// without, the same way.
 fn calibrated_at_best_width(
     config: &PipelineConfig,
     (found, viscous): (&[(Effect, f64)], Option<f64>),
-    step: Option<&FluidShape>,
+    step: Option<StepSeed>,
     effects: EffectSet,
     records: &[Vec<SensorSample>],
-) -> Result<(crate::fit::Calibrated, Vec<String>, Vec<Value>)> {
+) -> Result<BestUpgrade> {
     let peak_speed = records
         .iter()
         .flatten()
@@ -329,58 +398,81 @@ fn calibrated_at_best_width(
     } else {
         &FRICTION_WIDTHS[..1]
     };
-    let mut best: Option<(crate::fit::Calibrated, Vec<String>)> = None;
+    let steps: Vec<Option<StepSeed>> = match step {
+        Some(st) if st.nearest => vec![Some(st), None],
+        other => vec![other],
+    };
+    let mut best: Option<(crate::fit::Calibrated, Vec<String>, bool)> = None;
+    let mut by_step: [Option<f64>; 2] = [None, None];
     let mut first_error = None;
     let mut profile = Vec::new();
-    for share in widths {
-        let mut upgraded = config.params.clone();
-        for (e, si) in found {
-            seed_effect(
-                &mut upgraded.two_chamber,
-                *e,
-                *si,
-                share * peak_speed,
-                effects.has(Effect::GasSpring),
-            );
-        }
-        if let Some(ratio) = viscous {
-            seed_viscous_softening(&mut upgraded.two_chamber, ratio);
-        }
-        if let Some(st) = step {
-            // diagnose's F_c F_y(I)/F̄_y tanh(v/v_s) is β F_y(I) tanh(v/v_s): β = F_c/F̄_y.
-            upgraded.two_chamber.fluid.yield_step_share = st.share;
-            upgraded.two_chamber.fluid.yield_step_velocity_m_s =
-                (YIELD_STEP_WIDTH_START * peak_speed).max(1e-6);
-        }
-        let up_config = PipelineConfig {
-            params: upgraded,
-            effects,
-            ..config.clone()
-        };
-        match calibrate_upgrade(config, &up_config, records) {
-            Ok((c, held)) => {
-                if adds_friction {
-                    profile.push(json!({
-                        "seal_friction_velocity_m_s": share * peak_speed,
-                        "holdout_rmse_n": c.holdout_rmse_n,
-                    }));
-                }
-                if best
-                    .as_ref()
-                    .is_none_or(|(b, _)| c.holdout_rmse_n < b.holdout_rmse_n)
-                {
-                    best = Some((c, held));
-                }
+    for step in &steps {
+        for share in widths {
+            let mut upgraded = config.params.clone();
+            for (e, si) in found {
+                seed_effect(
+                    &mut upgraded.two_chamber,
+                    *e,
+                    *si,
+                    share * peak_speed,
+                    effects.has(Effect::GasSpring),
+                );
             }
-            Err(e) => {
-                first_error.get_or_insert(e);
+            if let Some(ratio) = viscous {
+                seed_viscous_softening(&mut upgraded.two_chamber, ratio);
+            }
+            if let Some(st) = step {
+                // diagnose's F_c F_y(I)/F̄_y tanh(v/v_s) is β F_y(I) tanh(v/v_s): β = F_c/F̄_y.
+                upgraded.two_chamber.fluid.yield_step_share = st.share;
+                upgraded.two_chamber.fluid.yield_step_velocity_m_s =
+                    (YIELD_STEP_WIDTH_START * peak_speed).max(1e-6);
+            }
+            let up_config = PipelineConfig {
+                params: upgraded,
+                effects,
+                ..config.clone()
+            };
+            match calibrate_upgrade(config, &up_config, records) {
+                Ok((c, held)) => {
+                    if adds_friction {
+                        profile.push(json!({
+                            "seal_friction_velocity_m_s": share * peak_speed,
+                            "yield_step": step.is_some(),
+                            "holdout_rmse_n": c.holdout_rmse_n,
+                        }));
+                    }
+                    let slot = &mut by_step[usize::from(step.is_none())];
+                    *slot = Some(slot.map_or(c.holdout_rmse_n, |r| r.min(c.holdout_rmse_n)));
+                    if best
+                        .as_ref()
+                        .is_none_or(|(b, _, _)| c.holdout_rmse_n < b.holdout_rmse_n)
+                    {
+                        best = Some((c, held, step.is_some()));
+                    }
+                }
+                Err(e) => {
+                    first_error.get_or_insert(e);
+                }
             }
         }
     }
-    let Some((c, held)) = best else {
-        return Err(first_error.expect("at least one width tried, and every one failed"));
+    let Some((calibrated, held, with_step)) = best else {
+        return Err(first_error.expect("at least one calibration tried, and every one failed"));
     };
-    Ok((c, held, profile))
+    let nearest = step.filter(|st| st.nearest).map(|st| {
+        json!({
+            "share_start": st.share,
+            "holdout_rmse_n_with": by_step[0],
+            "holdout_rmse_n_without": by_step[1],
+        })
+    });
+    Ok(BestUpgrade {
+        calibrated,
+        held,
+        profile,
+        with_step,
+        nearest,
+    })
 }
 
 /// Calibrate the upgraded twin on `records`. When the records cannot identify a parameter
