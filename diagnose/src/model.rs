@@ -418,6 +418,15 @@ pub const MIN_COMPLIANCE_DEFLECTION_PER_NOISE: f64 = 0.1;
 /// the compressibility there).
 pub const XP_MAX: f64 = 2e-4;
 
+/// The longest field lag \[s\] diagnose reports as one (`select::lag_resolved`): ten times
+/// the top of a damper's field rise time (magnetic rise and eddy currents, typically
+/// 5–20 ms; ../shared/PHYSICS.md). A slower approach to a new force level after a current
+/// step is not the field's: on proving-ground seed 422 (a friction and a fluid mass
+/// hidden, current stepped every 0.61 s) a lag of 943 ms was accepted once the candidates'
+/// Jacobian was fixed, longer than the current's dwell; the lags found where one was
+/// hidden are 1–78 ms, and the generator's 1–60 ms.
+pub const LONGEST_FIELD_LAG_S: f64 = 0.2;
+
 /// The shortest field lag \[s\] a record resolves (`select::lag_resolved`): one step of the
 /// sub-sample grid the model runs on near a current step, the sample interval over
 /// [`crate::subsample::OVERSAMPLING`].

@@ -2430,9 +2430,10 @@ fn interval_clear_widened(d: &Prepared, fit: &Fit, halves: Option<&Fit>, e: Effe
 /// filter fix its position no better. Proving-ground seed 780 (200 Hz, current stepped,
 /// no lag hidden) accepted 0.22 ms, 0.04 of its sample interval, beside its true fluid
 /// mass, once the lag could start from 1 ms; the lags found where one was hidden are 0.19
-/// of the sample interval and longer (seed 716: 0.96 ms at 200 Hz; seed 324: 1.0 ms).
+/// of the sample interval and longer (seed 716: 0.96 ms at 200 Hz; seed 324: 1.0 ms). And
+/// no longer than [`crate::model::LONGEST_FIELD_LAG_S`].
 fn lag_resolved(d: &Prepared, tau: f64) -> bool {
-    tau >= crate::model::shortest_resolved_lag_s(d)
+    (crate::model::shortest_resolved_lag_s(d)..=crate::model::LONGEST_FIELD_LAG_S).contains(&tau)
 }
 
 /// Whether a seal friction's presliding displacement `xp` (standard error `se`) is
@@ -2710,6 +2711,9 @@ mod tests {
         assert!((step - 1e-3 / 8.0).abs() < 1e-12, "{step}");
         assert!(lag_resolved(&d, 1.01 * step));
         assert!(!lag_resolved(&d, 0.99 * step));
+        // Seed 422's 943 ms is not a field's rise.
+        assert!(lag_resolved(&d, 0.078));
+        assert!(!lag_resolved(&d, 0.943));
     }
 
     /// 2 Hz strokes of ±8 mm at 1 kHz, a smoothed Bingham force with 20 N of white noise,
