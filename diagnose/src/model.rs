@@ -2422,17 +2422,18 @@ mod tests {
         assert_eq!(knot_penalty(&d, &two, &vec![7.0; two.len()]), 0.0);
     }
 
-    #[test]
-    fn jacobian_matches_finite_differences_with_every_effect() {
-        let d = record();
+    /// Every effect in, the chamber's shape and the thermal softening's viscous terms
+    /// free, the yield softness free (`soft`) or held, at a point inside every bound.
+    fn every_effect(d: &Prepared, soft: bool) -> (Layout, Vec<f64>) {
         let lay = Layout {
             effects: Effect::ALL.to_vec(),
-            soft: true,
+            soft,
             chamber_shape: true,
             thermal_apart: true,
             ..Layout::bare(d.knots.len())
         };
-        // knots' F_y and c, offset, leak, relative leak, yield softness, knots' c₂
+        // knots' F_y and c, offset, leak 4 mm/s, relative leak 0.05, yield softness 0.3,
+        // knots' c₂
         let mut theta = vec![
             250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 12.0, 0.004, 0.05, 0.3, -20.0, 10.0, 30.0,
         ];
@@ -2443,6 +2444,13 @@ mod tests {
             5e-8, 3e-4, 0.3, -0.4, 800.0, 15.0, 2e-4, 0.05, 0.12, 0.008, 0.5,
         ]);
         assert_eq!(theta.len(), lay.len());
+        (lay, theta)
+    }
+
+    #[test]
+    fn jacobian_matches_finite_differences_with_every_effect() {
+        let d = record();
+        let (lay, theta) = every_effect(&d, true);
         // The library's friction and the ones scaled by the yield force and the viscosity;
         // the thermal softening's viscous terms apart and tied to the yield force's.
         for (scaled, apart) in [
@@ -2467,21 +2475,7 @@ mod tests {
     #[test]
     fn jacobian_matches_finite_differences_with_the_yield_softness_held() {
         let d = record();
-        let lay = Layout {
-            effects: Effect::ALL.to_vec(),
-            soft: false,
-            chamber_shape: true,
-            thermal_apart: true,
-            ..Layout::bare(d.knots.len())
-        };
-        // As in the test above: the yield softness at 0.3, a 4 mm/s leak, a relative leak
-        // of 0.05.
-        let mut theta = vec![
-            250.0, 500.0, 800.0, 900.0, 1100.0, 1400.0, 12.0, 0.004, 0.05, 0.3, -20.0, 10.0, 30.0,
-        ];
-        theta.extend([
-            5e-8, 3e-4, 0.3, -0.4, 800.0, 15.0, 2e-4, 0.05, 0.12, 0.008, 0.5,
-        ]);
+        let (lay, theta) = every_effect(&d, false);
         assert_eq!(theta[lay.softness_index()], 0.3);
         check_jacobian(&d, &lay, &theta);
     }
