@@ -51,10 +51,10 @@ struct StepSeed {
 
 /// The yield step the upgrade tries: diagnose's yield-scaled step as it is, or else its
 /// step that follows the viscous coefficient, as the same step height at the mean yield
-/// force of diagnose's final model (`knotK_yield_force_N`). UTFSM 5mm3Hz's step follows
-/// the viscous coefficient since the candidates' Jacobian carries a held yield softness
-/// (issue 10, session 90); without a step its upgraded twin replayed at 64.6 N against
-/// diagnose's final 46.9 N, with the nearest step 38.1 N.
+/// force of the fit that found it (`FluidShape::mean_yield_force_n`). UTFSM 5mm3Hz's step
+/// follows the viscous coefficient since the candidates' Jacobian carries a held yield
+/// softness (issue 10, session 90); without a step its upgraded twin replayed at 64.6 N
+/// against diagnose's final 46.9 N, with the nearest step 38.1 N.
 fn step_seed(dg: &Diagnosis) -> Option<StepSeed> {
     let shapes = &dg.report.fluid_shape;
     if let Some(s) = shapes.iter().find(|s| carried(s)) {
@@ -63,21 +63,17 @@ fn step_seed(dg: &Diagnosis) -> Option<StepSeed> {
             nearest: false,
         });
     }
-    let s = shapes
+    shapes
         .iter()
-        .find(|s| s.follows == ShapeFollows::ViscousCoefficient && s.step_n > 0.0)?;
-    let knots: Vec<f64> = dg
-        .report
-        .final_parameters
-        .iter()
-        .filter(|(k, _)| k.starts_with("knot") && k.ends_with("_yield_force_N"))
-        .map(|(_, v)| *v)
-        .collect();
-    let mean_yield_force = knots.iter().sum::<f64>() / knots.len().max(1) as f64;
-    (mean_yield_force > 0.0).then(|| StepSeed {
-        share: s.step_n / mean_yield_force,
-        nearest: true,
-    })
+        .find(|s| {
+            s.follows == ShapeFollows::ViscousCoefficient
+                && s.step_n > 0.0
+                && s.mean_yield_force_n > 0.0
+        })
+        .map(|s| StepSeed {
+            share: s.step_n / s.mean_yield_force_n,
+            nearest: true,
+        })
 }
 
 /// The SI value of an effect's single parameter in a diagnose finding.

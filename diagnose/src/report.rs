@@ -226,6 +226,12 @@ pub struct FluidShape {
     /// The step's share of the coefficient, `step_N / mean_coefficient` (\[1\] for the yield
     /// force, \[m/s\] for the viscous coefficient).
     pub share: f64,
+    /// The mean yield force over the current knots in the same fit \[N\] (equal to
+    /// `mean_coefficient` when the step follows the yield force): where the step follows
+    /// the viscous coefficient, `step_N / mean_yield_force_N` is the share of the nearest
+    /// yield-scaled step, the one the twin's fluid has.
+    #[serde(rename = "mean_yield_force_N")]
+    pub mean_yield_force_n: f64,
     /// Velocity scale of the step's tanh \[m/s\].
     pub tanh_velocity_m_s: f64,
     /// Held-out RMS before \[N\].

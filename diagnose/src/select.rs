@@ -1739,6 +1739,7 @@ fn fluid_shape_found(d: &Prepared, current: &Fit, shape: &Fit) -> FluidShape {
         step_n: shape.theta[k],
         mean_coefficient: mean,
         share: shape.theta[k] / mean,
+        mean_yield_force_n: crate::model::knot_mean(&shape.theta, nk, FrictionScale::Yield),
         tanh_velocity_m_s: d.friction_velocity,
         holdout_rmse_before_n: before,
         holdout_rmse_after_n: after,
