@@ -45,7 +45,7 @@ pub struct DiagnoseArgs {
     /// Write the per-sample comparison as CSV here: time, rebuilt velocity and its σ,
     /// current, measured force, the baseline's and the final model's force, the sample's
     /// weight and its role (`fit`, `held_out`, `unscored` — in a held-out block at a current the
-    /// fit cannot predict — or `excluded`).
+    /// fit cannot predict or faster than the fit reaches there — or `excluded`).
     #[arg(long, value_name = "OUT.csv")]
     pub residuals: Option<PathBuf>,
     /// How candidate effects are accepted: `calibrated` (against a bootstrap null of the
@@ -269,8 +269,9 @@ fn residuals_csv(dg: &Diagnosis) -> String {
         } else if d.train[j] {
             "fit"
         } else {
-            // In a held-out block but not scored: at a current beyond the fitted levels
-            // or at a level the fit never saw (`split.method`).
+            // In a held-out block but not scored: at a current beyond the fitted levels,
+            // at a level the fit never saw, or faster than the fitting samples reach at
+            // its current knot (`split.method`).
             "unscored"
         };
         let _ = writeln!(
