@@ -49,7 +49,7 @@ pub struct DiagnoseArgs {
     #[arg(long, value_name = "OUT.csv")]
     pub residuals: Option<PathBuf>,
     /// How candidate effects are accepted: `calibrated` (against a bootstrap null of the
-    /// fitted model at a 1 % family-wise false-alarm rate), `rules` (the four hand-set
+    /// fitted model at a 2 % family-wise false-alarm rate), `rules` (the four hand-set
     /// rules of the first version) or `sindy` (SINDy-style sparse regression, for
     /// comparison).
     #[arg(long, value_name = "NAME", default_value = "calibrated", value_parser = parse_selector)]

@@ -39,7 +39,10 @@ use crate::stats;
 pub struct Calibration {
     /// Bootstrap replicates per round.
     pub replicates: usize,
-    /// Family-wise false-alarm rate per record (over the library and every round).
+    /// Family-wise false-alarm rate per record (over the library and every round): 2 %,
+    /// the proving ground's bound on records with a false finding (issue 10). At 1 % the
+    /// 1 % of records with one was well inside it while true effects a few percent short
+    /// of their threshold were missed (BENCHMARKS.md, issue 10, session 92).
     pub family_alpha: f64,
     /// Seed of the replicates (fixed: the same record gives the same diagnosis).
     pub seed: u64,
@@ -60,7 +63,7 @@ impl Default for Calibration {
     fn default() -> Self {
         Self {
             replicates: 16,
-            family_alpha: 0.01,
+            family_alpha: 0.02,
             seed: 0x6d72_7477_696e,
             screen_fraction: 0.25,
             threads: 0,
