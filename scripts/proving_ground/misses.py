@@ -29,6 +29,12 @@ threshold and that were not accepted, for R in --lead-ratios. For each R: how ma
 lead effects there are, how many of them are hidden in their record (true) or not
 (false), on how many nulls one appears, and how many missed effects a lead names. It
 measures how much a "fits far better but is not confirmed" note would tell a user.
+
+A third table sorts the records by how far the final model stays from the noise, its
+held-out RMS over σ_F (results.json's `final_rmse` and `sigma_F`): how many records in
+each band, how many are not exact with the effects leaving < 0.5 σ_F unabsorbed optional
+(study.py's `exact_identifiable`), how many have a false finding, and how many of the
+band's records have random strokes (the scenario's `excitation.kind`).
 """
 import argparse
 import collections
@@ -113,6 +119,39 @@ def leads_table(diagnoses, ratios):
               f"| {named} of {missed} |")
 
 
+# study.IDENTIFIABLE_U (study.py imports the generator and numpy; this script does not).
+IDENTIFIABLE_U = 0.5
+FIT_BANDS = [1.1, 1.3, 1.6, 2.0, 3.0, 5.0]
+
+
+def fit_bands_table(dirpath, records, selector):
+    """Records by final held-out RMS / σ_F (bands split at FIT_BANDS)."""
+    edges = [0.0] + FIT_BANDS + [float("inf")]
+    rows = [collections.Counter() for _ in range(len(edges) - 1)]
+    for rec in records:
+        run = next((r for r in rec["runs"] if r["selector"] == selector), None)
+        if run is None or run["rc"] != 0:
+            continue
+        ratio = run["final_rmse"] / run["sigma_F"]
+        band = next(i for i in range(len(rows)) if ratio < edges[i + 1])
+        hidden, found = set(run["hidden"]), set(run["findings"])
+        optional = {h for h, u in zip(run["hidden"], run["u_unabsorbed"])
+                    if u < IDENTIFIABLE_U}
+        false = found - hidden
+        exact = (found - optional) == (hidden - optional) and not false \
+            and not run.get("undecided")
+        with open(os.path.join(dirpath, "seed%04d.meta.json" % rec["seed"])) as f:
+            random = json.load(f)["excitation"]["kind"] == "random"
+        rows[band].update(records=1, not_exact=not exact, false=bool(false), random=random)
+    print("| final held-out RMS / σ_F | records | not exact (optional effects optional) "
+          "| with a false finding | random strokes |")
+    print("|---|---|---|---|---|")
+    for i, c in enumerate(rows):
+        hi = "" if edges[i + 1] == float("inf") else f"{edges[i + 1]:g}"
+        print(f"| {edges[i]:g}–{hi} | {c['records']} | {c['not_exact']} | {c['false']} "
+              f"| {c['random']} |")
+
+
 CAUSES = ["absorbed", "below null", "no presliding", "held-out worse", "no gain",
           "interval", "structure", "other", "not tried"]
 
@@ -153,6 +192,8 @@ def main():
             print(f"- {c}: seeds {', '.join(str(s) for s in sorted(set(seeds[c])))}")
     print()
     leads_table(diagnoses, [float(x) for x in a.lead_ratios.split(",")])
+    print()
+    fit_bands_table(a.dir, res["records"], a.selector)
 
 
 if __name__ == "__main__":
