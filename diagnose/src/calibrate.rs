@@ -40,9 +40,9 @@ pub struct Calibration {
     /// Bootstrap replicates per round.
     pub replicates: usize,
     /// Family-wise false-alarm rate per record (over the library and every round): 2 %,
-    /// the proving ground's bound on records with a false finding (issue 10). At 1 % the
-    /// 1 % of records with one was well inside it while true effects a few percent short
-    /// of their threshold were missed (BENCHMARKS.md, issue 10, session 92).
+    /// the proving ground's bound on records with a false finding (issue 10). At 1 % those
+    /// records were 1.2 % of 900, inside it, while true effects a few percent short of
+    /// their threshold were missed (BENCHMARKS.md, issue 10, session 92).
     pub family_alpha: f64,
     /// Seed of the replicates (fixed: the same record gives the same diagnosis).
     pub seed: u64,
