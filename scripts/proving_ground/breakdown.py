@@ -10,8 +10,7 @@ alone and beside others, with Wilson 95 % intervals.
 
 Each DIR is a `study.py --out` directory (several are pooled): its results.json and the
 seedNNNN.meta.json files beside it (the hidden truth and every drawn setting). Records are
-scored as study.py scores them (`study.score`, which imports the generator: run it with
-the test venv's python); this script only groups them.
+scored as study.py scores them (`pgstats.score`); this script only groups them.
 """
 import argparse
 import json
@@ -19,8 +18,7 @@ import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from pgstats import wilson  # noqa: E402
-from study import NULL_BASELINE_WITHIN, null_baseline_ratio, score  # noqa: E402
+from pgstats import NULL_BASELINE_WITHIN, null_baseline_ratio, score, wilson  # noqa: E402
 
 
 def fs_band(fs):

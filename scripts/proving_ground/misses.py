@@ -33,13 +33,17 @@ measures how much a "fits far better but is not confirmed" note would tell a use
 A third table sorts the records by how far the final model stays from the noise, its
 held-out RMS over σ_F (results.json's `final_rmse` and `sigma_F`): how many records in
 each band, how many are not exact with the effects leaving < 0.5 σ_F unabsorbed optional
-(study.py's `exact_identifiable`), how many have a false finding, and how many of the
+(`pgstats.score`'s `exact_identifiable`, as study.py scores), how many have a false finding, and how many of the
 band's records have random strokes (the scenario's `excitation.kind`).
 """
 import argparse
 import collections
 import json
 import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from pgstats import score  # noqa: E402
 
 
 def cause(effect, trial):
@@ -83,14 +87,20 @@ def last_round_leads(diagnosis, ratio):
     return leads - found
 
 
+def diagnosed_run(rec, selector):
+    """The record's run by `selector` when it diagnosed it (exit 0), else None."""
+    run = next((r for r in rec["runs"] if r["selector"] == selector), None)
+    return run if run is not None and run["rc"] == 0 else None
+
+
 def diagnosed(dirpath, records, selector):
     """(seed, hidden effects, missed effects, diagnosis JSON) of each record the selector
     diagnosed; missed: hidden and neither found nor in an undecided group, in the order
     the record hides them."""
     out = []
     for rec in records:
-        run = next((r for r in rec["runs"] if r["selector"] == selector), None)
-        if run is None or run["rc"] != 0:
+        run = diagnosed_run(rec, selector)
+        if run is None:
             continue
         missed = [h for h in run["hidden"] if h not in run["findings"]
                   and not any(h in g for g in run.get("undecided", []))]
@@ -119,8 +129,6 @@ def leads_table(diagnoses, ratios):
               f"| {named} of {missed} |")
 
 
-# study.IDENTIFIABLE_U (study.py imports the generator and numpy; this script does not).
-IDENTIFIABLE_U = 0.5
 FIT_BANDS = [1.1, 1.3, 1.6, 2.0, 3.0, 5.0]
 
 
@@ -129,20 +137,16 @@ def fit_bands_table(dirpath, records, selector):
     edges = [0.0] + FIT_BANDS + [float("inf")]
     rows = [collections.Counter() for _ in range(len(edges) - 1)]
     for rec in records:
-        run = next((r for r in rec["runs"] if r["selector"] == selector), None)
-        if run is None or run["rc"] != 0:
+        run = diagnosed_run(rec, selector)
+        if run is None:
             continue
         ratio = run["final_rmse"] / run["sigma_F"]
         band = next(i for i in range(len(rows)) if ratio < edges[i + 1])
-        hidden, found = set(run["hidden"]), set(run["findings"])
-        optional = {h for h, u in zip(run["hidden"], run["u_unabsorbed"])
-                    if u < IDENTIFIABLE_U}
-        false = found - hidden
-        exact = (found - optional) == (hidden - optional) and not false \
-            and not run.get("undecided")
+        sc = score(run)
         with open(os.path.join(dirpath, "seed%04d.meta.json" % rec["seed"])) as f:
             random = json.load(f)["excitation"]["kind"] == "random"
-        rows[band].update(records=1, not_exact=not exact, false=bool(false), random=random)
+        rows[band].update(records=1, not_exact=not sc["exact_identifiable"],
+                          false=sc["n_false"] > 0, random=random)
     print("| final held-out RMS / σ_F | records | not exact (optional effects optional) "
           "| with a false finding | random strokes |")
     print("|---|---|---|---|---|")
