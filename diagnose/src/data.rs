@@ -1155,8 +1155,8 @@ pub const FIT_SPEED_REACH: f64 = 1.25;
 /// seed 739 (a bi-viscous fluid yielding near 5 mm/s under random strokes and currents):
 /// at 1.01 A the fitting blocks reach 3.5 mm/s and the held-out ones 7 mm/s, 183 N
 /// held-out RMS there against 25 N fitted; the thermal softening hidden in it predicted
-/// the pooled held-out blocks 69 → 273 N. Not scored,
-/// with [`leave_out_unscored`]'s proviso (at least 20 of them, 100 scored samples stay).
+/// the pooled held-out blocks 69 → 273 N. Not scored, with [`leave_out_unscored`]'s
+/// proviso (at least 20 of them, 100 scored samples stay).
 /// Returns the split's description, with what was left out.
 fn leave_out_beyond_reach(
     (i, v): (&[f64], &[f64]),
