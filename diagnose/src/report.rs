@@ -132,6 +132,10 @@ pub struct Evidence {
     /// The largest ratio of a held-out block's mean square after to before: how much worse
     /// the candidate makes the block it hurts most (below 1: it helps every block).
     pub holdout_worst_block_ms_ratio: f64,
+    /// Where the candidate predicts the held-out blocks worse: the block it hurts most and
+    /// the current knot where that block's added error gathers (absent when it hurts none).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub holdout_harm: Option<HeldOutHarm>,
     /// Change of the information criterion with the effective sample size (negative: better).
     pub delta_bic: f64,
     /// Effective sample size used in the criterion and the intervals.
@@ -177,6 +181,38 @@ pub struct BlockGain {
     /// RMS after \[N\].
     #[serde(rename = "rmse_after_N")]
     pub rmse_after_n: f64,
+}
+
+/// The held-out block a candidate predicts worst against the model without it, and where
+/// in it the added error gathers: at one current knot, the knot's fitting samples few or
+/// slower than the held-out ones, the candidate has moved that knot's fluid law where the
+/// fitting blocks do not hold it (docs/diagnose.md, "Held-out harm").
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct HeldOutHarm {
+    /// Start of the block \[s\].
+    pub start_s: f64,
+    /// End of the block \[s\].
+    pub end_s: f64,
+    /// Held-out samples in it.
+    pub samples: usize,
+    /// The block's RMS without the candidate \[N\].
+    #[serde(rename = "rmse_before_N")]
+    pub rmse_before_n: f64,
+    /// With it \[N\].
+    #[serde(rename = "rmse_after_N")]
+    pub rmse_after_n: f64,
+    /// The current knot (nearest to the samples) that holds most of the block's added
+    /// squared error \[A\].
+    pub knot_a: f64,
+    /// That knot's share of the added squared error (summed over the block's samples whose
+    /// error grew).
+    pub knot_share: f64,
+    /// The fastest of those samples at the knot \[m/s\].
+    pub peak_speed_m_s: f64,
+    /// Fitting samples at the knot (anywhere in the record).
+    pub fitting_samples_at_knot: usize,
+    /// The fastest of them \[m/s\].
+    pub fitting_peak_speed_m_s: f64,
 }
 
 /// Structure the final model leaves in the residual beyond noise.
@@ -902,4 +938,48 @@ fn write_trials(s: &mut String, r: &Report) {
             yn(t.accepted)
         );
     }
+    write_holdout_harm(s, &r.trials);
 }
+
+/// Below the trials: each rejected candidate that made a held-out block at least twice as
+/// bad in mean square ([`HARM_LISTED`]), where.
+fn write_holdout_harm(s: &mut String, trials: &[Trial]) {
+    use std::fmt::Write;
+    let harmed: Vec<(&Trial, &HeldOutHarm)> = trials
+        .iter()
+        .filter(|t| !t.accepted)
+        .filter_map(|t| t.evidence.holdout_harm.as_ref().map(|h| (t, h)))
+        .filter(|(_, h)| {
+            h.rmse_after_n * h.rmse_after_n >= HARM_LISTED * h.rmse_before_n * h.rmse_before_n
+        })
+        .collect();
+    if harmed.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        s,
+        "\nHeld-out blocks a rejected candidate predicts at least {HARM_LISTED}× worse in mean square:\n"
+    );
+    for (t, h) in harmed {
+        let _ = writeln!(
+            s,
+            "- round {}, {}: {:.2}–{:.2} s, {:.1} → {:.1} N; {:.0} % of the added error at {:.3} A, \
+             held out up to {:.1} mm/s, fitted there on {} samples up to {:.1} mm/s",
+            t.round,
+            t.effect,
+            h.start_s,
+            h.end_s,
+            h.rmse_before_n,
+            h.rmse_after_n,
+            100.0 * h.knot_share,
+            h.knot_a,
+            1e3 * h.peak_speed_m_s,
+            h.fitting_samples_at_knot,
+            1e3 * h.fitting_peak_speed_m_s
+        );
+    }
+}
+
+/// How much worse in mean square a held-out block must be for the report to list it
+/// ([`write_holdout_harm`]).
+pub const HARM_LISTED: f64 = 2.0;

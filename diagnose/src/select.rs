@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 use twin::Effect;
 
 use crate::calibrate::{self, CalibratedEvidence, Calibration};
-use crate::data::{prepare, DataError, Phase, Prepared, Signals, YieldCurve};
+use crate::data::{nearest_knot, prepare, DataError, Phase, Prepared, Signals, YieldCurve};
 use crate::model::{
     effect_params, evaluate, extend, fit, second_start_if_fits_no_worse, Fit, FitDetail,
     FrictionScale, Layout,
@@ -407,6 +407,8 @@ fn residual_stats(d: &Prepared, r: &[f64]) -> ResidualStats {
 /// One held-out validation block's residuals under one model ([`holdout_blocks`]).
 #[derive(Debug, Clone, Copy)]
 struct HeldOutBlock {
+    /// The block's index ([`Prepared::block`]).
+    index: usize,
     /// First and last sample time in the block \[s\].
     start_s: f64,
     end_s: f64,
@@ -427,14 +429,16 @@ impl HeldOutBlock {
 /// The held-out residuals of `force` per held-out validation block, in block order
 /// (blocks without a held-out sample left out).
 fn holdout_blocks(d: &Prepared, force: &[f64]) -> Vec<HeldOutBlock> {
-    let empty = HeldOutBlock {
-        start_s: f64::INFINITY,
-        end_s: f64::NEG_INFINITY,
-        samples: 0,
-        weighted_sse: 0.0,
-        weight: 0.0,
-    };
-    let mut s = vec![empty; d.blocks];
+    let mut s: Vec<HeldOutBlock> = (0..d.blocks)
+        .map(|index| HeldOutBlock {
+            index,
+            start_s: f64::INFINITY,
+            end_s: f64::NEG_INFINITY,
+            samples: 0,
+            weighted_sse: 0.0,
+            weight: 0.0,
+        })
+        .collect();
     for j in 0..d.len() {
         if d.holdout[j] {
             let b = &mut s[d.block[j]];
@@ -474,6 +478,57 @@ fn typical_block_rmse(before: &[HeldOutBlock], after: &[HeldOutBlock]) -> (f64, 
         |k: fn(&(f64, f64)) -> f64| (0.5 * pairs.iter().map(|p| k(p).ln()).sum::<f64>() / n).exp();
     let worst = pairs.iter().map(|p| p.1 / p.0).fold(0.0, f64::max);
     (typical(|p| p.0), typical(|p| p.1), worst)
+}
+
+/// Where `after` predicts the held-out blocks worse than `before` ([`HeldOutHarm`]): the
+/// block whose mean square it raises by the largest ratio (`blocks_before`,
+/// `blocks_after` from [`holdout_blocks`] of the two forces), and the current knot nearest
+/// the samples that hold most of that block's added squared error. `None` when no block
+/// gets worse.
+fn holdout_harm(
+    d: &Prepared,
+    (before, after): (&[f64], &[f64]),
+    blocks_before: &[HeldOutBlock],
+    blocks_after: &[HeldOutBlock],
+) -> Option<HeldOutHarm> {
+    let ratio =
+        |(b, a): &(&HeldOutBlock, &HeldOutBlock)| a.mean_square() / b.mean_square().max(1e-300);
+    let (b, a) = blocks_before
+        .iter()
+        .zip(blocks_after)
+        .max_by(|x, y| ratio(x).total_cmp(&ratio(y)))?;
+    if a.mean_square() <= b.mean_square() {
+        return None;
+    }
+    let nk = d.knots.len();
+    let (mut added, mut peak) = (vec![0.0; nk], vec![0.0f64; nk]);
+    for j in (0..d.len()).filter(|&j| d.holdout[j] && d.block[j] == b.index) {
+        let grew = d.weight[j] * ((d.f[j] - after[j]).powi(2) - (d.f[j] - before[j]).powi(2));
+        if grew > 0.0 {
+            let k = nearest_knot(&d.knots, d.i[j]);
+            added[k] += grew;
+            peak[k] = peak[k].max(d.v[j].abs());
+        }
+    }
+    let total: f64 = added.iter().sum();
+    let k = (0..nk).max_by(|&x, &y| added[x].total_cmp(&added[y]))?;
+    let (mut fitting, mut fitting_peak) = (0, 0.0f64);
+    for j in (0..d.len()).filter(|&j| d.train[j] && nearest_knot(&d.knots, d.i[j]) == k) {
+        fitting += 1;
+        fitting_peak = fitting_peak.max(d.v[j].abs());
+    }
+    Some(HeldOutHarm {
+        start_s: b.start_s,
+        end_s: b.end_s,
+        samples: b.samples,
+        rmse_before_n: b.mean_square().sqrt(),
+        rmse_after_n: a.mean_square().sqrt(),
+        knot_a: d.knots[k],
+        knot_share: if total > 0.0 { added[k] / total } else { 0.0 },
+        peak_speed_m_s: peak[k],
+        fitting_samples_at_knot: fitting,
+        fitting_peak_speed_m_s: fitting_peak,
+    })
 }
 
 /// The fall of a held-out mean square above the force channel's own noise,
@@ -961,6 +1016,12 @@ fn judge(
         (before, after),
         (typical_before, typical_after, worst_ratio),
     );
+    let harm = holdout_harm(
+        d,
+        (&current.force, &cand.force),
+        blocks_before,
+        &blocks_after,
+    );
     let passed = [
         after < before * (1.0 - th.min_holdout_drop) && z >= th.min_holdout_z,
         dbic <= th.max_delta_bic,
@@ -979,6 +1040,7 @@ fn judge(
             holdout_typical_block_rmse_before_n: typical_before,
             holdout_typical_block_rmse_after_n: typical_after,
             holdout_worst_block_ms_ratio: worst_ratio,
+            holdout_harm: harm,
             delta_bic: dbic,
             effective_samples: n_eff,
             holdout_z: z,
