@@ -2800,6 +2800,86 @@ mod tests {
         prepare(&s).expect("valid record")
     }
 
+    #[test]
+    fn holdout_harm_names_the_block_and_the_knot_a_candidate_predicts_worse() {
+        // 2 Hz strokes, the current held at 0.5 and 1 A in turn for 0.5 s each.
+        let w = 2.0 * std::f64::consts::PI * 2.0;
+        let mut s = Signals::default();
+        for k in 0..8000 {
+            let t = k as f64 * 1e-3;
+            let v = 0.008 * w * (w * t).cos();
+            let i = if (t / 0.5) as usize % 2 == 0 {
+                0.5
+            } else {
+                1.0
+            };
+            s.time_s.push(t);
+            s.displacement_m.push(0.008 * (w * t).sin());
+            s.velocity_m_s.push(v);
+            s.current_a.push(i);
+            s.force_n.push(900.0 * i * (v / 0.01).tanh() + 3000.0 * v);
+        }
+        let d = prepare(&s).expect("valid record");
+        let before: Vec<f64> = d.f.iter().map(|f| f + 1.0).collect();
+        assert_eq!(
+            holdout_harm(
+                &d,
+                (&before, &d.f),
+                &holdout_blocks(&d, &before),
+                &holdout_blocks(&d, &d.f)
+            ),
+            None,
+            "a model better everywhere harms no block"
+        );
+        // Worse by 30 N on the held-out samples at 1 A of one held-out block only, and by
+        // 10 N at 0.5 A in the same block.
+        let target = d.block[(0..d.len())
+            .find(|&j| d.holdout[j])
+            .expect("held-out samples")];
+        let at = |j: usize, i: f64| (d.i[j] - i).abs() < 0.1;
+        let after: Vec<f64> = (0..d.len())
+            .map(
+                |j| match (d.holdout[j] && d.block[j] == target, at(j, 1.0)) {
+                    (true, true) => before[j] + 30.0,
+                    (true, false) => before[j] + 10.0,
+                    _ => before[j],
+                },
+            )
+            .collect();
+        let harm = holdout_harm(
+            &d,
+            (&before, &after),
+            &holdout_blocks(&d, &before),
+            &holdout_blocks(&d, &after),
+        )
+        .expect("one block is worse");
+        let block = holdout_blocks(&d, &before)
+            .into_iter()
+            .find(|b| b.index == target)
+            .expect("the block");
+        assert_eq!((harm.start_s, harm.end_s), (block.start_s, block.end_s));
+        assert!((harm.knot_a - 1.0).abs() < 0.05, "knot {}", harm.knot_a);
+        // 1 A's share of the added squared error: (31² − 1²) n₁ against (11² − 1²) n₀.
+        let (n1, n0) = (0..d.len())
+            .filter(|&j| d.holdout[j] && d.block[j] == target)
+            .fold((0.0, 0.0), |(a, b), j| {
+                if at(j, 1.0) {
+                    (a + d.weight[j], b)
+                } else {
+                    (a, b + d.weight[j])
+                }
+            });
+        let share = 960.0 * n1 / (960.0 * n1 + 120.0 * n0);
+        assert!(
+            (harm.knot_share - share).abs() < 1e-9,
+            "{} vs {share}",
+            harm.knot_share
+        );
+        let fitting = (0..d.len()).filter(|&j| d.train[j] && at(j, 1.0)).count();
+        assert_eq!(harm.fitting_samples_at_knot, fitting);
+        assert!(harm.rmse_after_n > harm.rmse_before_n);
+    }
+
     /// Every candidate's statistic against the current model's optimum (in the optimum's
     /// noise units), and how far short of it `current` stopped (in `current`'s).
     fn corrected_statistics(d: &Prepared, current: &Fit) -> (Vec<(Effect, f64)>, f64) {
@@ -2897,6 +2977,7 @@ mod tests {
 
     fn block(rms: f64) -> HeldOutBlock {
         HeldOutBlock {
+            index: 0,
             start_s: 0.0,
             end_s: 1.0,
             samples: 100,
