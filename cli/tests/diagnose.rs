@@ -113,6 +113,7 @@ fn finds_field_lag_with_json_report_and_plots() {
             < ev["holdout_rmse_before_N"].as_f64().unwrap()
     );
     assert!(ev["delta_bic"].as_f64().unwrap() < 0.0);
+    check_holdout_harm(&j);
     assert!(j["undecided"].as_array().unwrap().is_empty());
     let md = fs::read_to_string(&out_md).unwrap();
     assert!(md.contains("**field_lag**"), "{md}");
@@ -129,6 +130,42 @@ fn finds_field_lag_with_json_report_and_plots() {
         );
     }
     check_html_report(&dir, &out_html, &md);
+}
+
+/// Every trial's `holdout_harm`, where present, names a held-out block the trial made
+/// worse and one of the record's current knots, with a share of the added error in (0, 1].
+fn check_holdout_harm(j: &serde_json::Value) {
+    let knots: Vec<f64> = j["split"]["current_knots_a"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|k| k.as_f64().unwrap())
+        .collect();
+    let trials = j["trials"].as_array().unwrap();
+    let harmed: Vec<&serde_json::Value> = trials
+        .iter()
+        .filter_map(|t| t["evidence"].get("holdout_harm"))
+        .collect();
+    for h in &harmed {
+        let f = |k: &str| h[k].as_f64().unwrap_or_else(|| panic!("{k} in {h}"));
+        assert!(f("rmse_after_N") > f("rmse_before_N"), "{h}");
+        assert!(f("start_s") <= f("end_s"), "{h}");
+        assert!(f("knot_share") > 0.0 && f("knot_share") <= 1.0, "{h}");
+        assert!(
+            knots.contains(&f("knot_a")),
+            "{h} not at a knot of {knots:?}"
+        );
+        assert!(h["samples"].as_u64().unwrap() > 0, "{h}");
+    }
+    // Every trial that makes some block worse says so: its worst block's mean-square
+    // ratio above 1 goes with a harm entry, and none without.
+    for t in trials {
+        let worse = t["evidence"]["holdout_worst_block_ms_ratio"]
+            .as_f64()
+            .unwrap()
+            > 1.0;
+        assert_eq!(worse, t["evidence"].get("holdout_harm").is_some(), "{t}");
+    }
 }
 
 /// The HTML page of a diagnosis with a finding: one self-contained file holding the
