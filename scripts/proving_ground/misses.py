@@ -35,6 +35,12 @@ held-out RMS over σ_F (results.json's `final_rmse` and `sigma_F`): how many rec
 each band, how many are not exact with the effects leaving < 0.5 σ_F unabsorbed optional
 (`pgstats.score`'s `exact_identifiable`, as study.py scores), how many have a false finding, and how many of the
 band's records have random strokes (the scenario's `excitation.kind`).
+
+A fourth table reads each missed effect's last trial's `holdout_harm` (docs/diagnose.md
+§5): per cause, how many of those trials make a held-out block at least HARM_LISTED times
+worse in mean square, and in how many of them *every* candidate of that round harms the
+same block at the same current knot that much (the harm is the refit's, not the
+effect's: the knot's fluid law moved away from where the current model stopped).
 """
 import argparse
 import collections
@@ -145,8 +151,8 @@ def fit_bands_table(dirpath, records, selector):
         sc = score(run)
         with open(os.path.join(dirpath, "seed%04d.meta.json" % rec["seed"])) as f:
             random = json.load(f)["excitation"]["kind"] == "random"
-        rows[band].update(records=1, not_exact=not sc["exact_identifiable"],
-                          false=sc["n_false"] > 0, random=random)
+        rows[band].update(records=1, not_exact=int(not sc["exact_identifiable"]),
+                          false=int(sc["n_false"] > 0), random=int(random))
     print("| final held-out RMS / σ_F | records | not exact (optional effects optional) "
           "| with a false finding | random strokes |")
     print("|---|---|---|---|---|")
@@ -154,6 +160,53 @@ def fit_bands_table(dirpath, records, selector):
         hi = "" if edges[i + 1] == float("inf") else f"{edges[i + 1]:g}"
         print(f"| {edges[i]:g}–{hi} | {c['records']} | {c['not_exact']} | {c['false']} "
               f"| {c['random']} |")
+
+
+# report::HARM_LISTED: a held-out block this many times worse in mean square is listed.
+HARM_LISTED = 2.0
+
+
+def listed_harm(trial):
+    """The trial's `holdout_harm` when it makes its block HARM_LISTED times worse, else
+    None."""
+    h = trial["evidence"].get("holdout_harm")
+    if h and h["rmse_after_N"] ** 2 >= HARM_LISTED * h["rmse_before_N"] ** 2:
+        return h
+    return None
+
+
+def shared_harm(diagnosis, trial):
+    """Whether every other candidate of `trial`'s round harms the same block at the same
+    knot as `trial` does (listed_harm); False when `trial` harms none or is alone."""
+    h = listed_harm(trial)
+    others = [t for t in diagnosis["trials"] if t["round"] == trial["round"] and t is not trial]
+    if h is None or not others:
+        return False
+    same = lambda o: o is not None and (o["start_s"], o["knot_a"]) == (h["start_s"], h["knot_a"])  # noqa: E731
+    return all(same(listed_harm(t)) for t in others)
+
+
+def harm_table(missed_trials):
+    """Per cause: missed effects, those whose last trial harms a block (listed_harm), and
+    those whose whole round shares that harm (shared_harm). `missed_trials`: (seed,
+    cause, trial, diagnosis) of each missed effect that was tried."""
+    rows = collections.defaultdict(collections.Counter)
+    shared_seeds = set()
+    for seed, c, trial, d in missed_trials:
+        harmed = listed_harm(trial) is not None
+        shared = shared_harm(d, trial)
+        rows[c].update(missed=1, harmed=int(harmed), shared=int(shared))
+        if shared:
+            shared_seeds.add(seed)
+    print(f"| cause | missed effects | last trial makes a held-out block ≥ {HARM_LISTED:g}× worse "
+          "| every candidate of that round makes the same block worse at the same knot |")
+    print("|---|---|---|---|")
+    for c in CAUSES:
+        if rows[c]["missed"]:
+            r = rows[c]
+            print(f"| {c} | {r['missed']} | {r['harmed']} | {r['shared']} |")
+    if shared_seeds:
+        print(f"\n- shared harm: seeds {', '.join(str(s) for s in sorted(shared_seeds))}")
 
 
 CAUSES = ["absorbed", "below null", "no presliding", "held-out worse", "no gain",
@@ -171,6 +224,7 @@ def main():
     table = collections.defaultdict(collections.Counter)
     seeds = collections.defaultdict(list)
     diagnoses = diagnosed(a.dir, res["records"], a.selector)
+    missed_trials = []
     for seed, _, missed, d in diagnoses:
         last = {}
         for tr in d["trials"]:
@@ -179,6 +233,8 @@ def main():
             c = cause(h, last[h]) if h in last else "not tried"
             table[h][c] += 1
             seeds[c].append(seed)
+            if h in last:
+                missed_trials.append((seed, c, last[h], d))
     effects = sorted(table)
     print("| missed effect | " + " | ".join(CAUSES) + " | all |")
     print("|---|" + "---|" * (len(CAUSES) + 1))
@@ -198,6 +254,8 @@ def main():
     leads_table(diagnoses, [float(x) for x in a.lead_ratios.split(",")])
     print()
     fit_bands_table(a.dir, res["records"], a.selector)
+    print()
+    harm_table(missed_trials)
 
 
 if __name__ == "__main__":
