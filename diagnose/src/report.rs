@@ -189,18 +189,9 @@ pub struct BlockGain {
 /// fitting blocks do not hold it (docs/diagnose.md, "Held-out harm").
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct HeldOutHarm {
-    /// Start of the block \[s\].
-    pub start_s: f64,
-    /// End of the block \[s\].
-    pub end_s: f64,
-    /// Held-out samples in it.
-    pub samples: usize,
-    /// The block's RMS without the candidate \[N\].
-    #[serde(rename = "rmse_before_N")]
-    pub rmse_before_n: f64,
-    /// With it \[N\].
-    #[serde(rename = "rmse_after_N")]
-    pub rmse_after_n: f64,
+    /// The block: its span, held-out samples, and RMS without the candidate and with it.
+    #[serde(flatten)]
+    pub block: BlockGain,
     /// The current knot (nearest to the samples) that holds most of the block's added
     /// squared error \[A\].
     pub knot_a: f64,
@@ -950,7 +941,8 @@ fn write_holdout_harm(s: &mut String, trials: &[Trial]) {
         .filter(|t| !t.accepted)
         .filter_map(|t| t.evidence.holdout_harm.as_ref().map(|h| (t, h)))
         .filter(|(_, h)| {
-            h.rmse_after_n * h.rmse_after_n >= HARM_LISTED * h.rmse_before_n * h.rmse_before_n
+            let b = &h.block;
+            b.rmse_after_n * b.rmse_after_n >= HARM_LISTED * b.rmse_before_n * b.rmse_before_n
         })
         .collect();
     if harmed.is_empty() {
@@ -967,10 +959,10 @@ fn write_holdout_harm(s: &mut String, trials: &[Trial]) {
              held out up to {:.1} mm/s, fitted there on {} samples up to {:.1} mm/s",
             t.round,
             t.effect,
-            h.start_s,
-            h.end_s,
-            h.rmse_before_n,
-            h.rmse_after_n,
+            h.block.start_s,
+            h.block.end_s,
+            h.block.rmse_before_n,
+            h.block.rmse_after_n,
             100.0 * h.knot_share,
             h.knot_a,
             1e3 * h.peak_speed_m_s,

@@ -518,11 +518,13 @@ fn holdout_harm(
         fitting_peak = fitting_peak.max(d.v[j].abs());
     }
     Some(HeldOutHarm {
-        start_s: b.start_s,
-        end_s: b.end_s,
-        samples: b.samples,
-        rmse_before_n: b.mean_square().sqrt(),
-        rmse_after_n: a.mean_square().sqrt(),
+        block: BlockGain {
+            start_s: b.start_s,
+            end_s: b.end_s,
+            samples: b.samples,
+            rmse_before_n: b.mean_square().sqrt(),
+            rmse_after_n: a.mean_square().sqrt(),
+        },
         knot_a: d.knots[k],
         knot_share: if total > 0.0 { added[k] / total } else { 0.0 },
         peak_speed_m_s: peak[k],
@@ -2857,7 +2859,10 @@ mod tests {
             .into_iter()
             .find(|b| b.index == target)
             .expect("the block");
-        assert_eq!((harm.start_s, harm.end_s), (block.start_s, block.end_s));
+        assert_eq!(
+            (harm.block.start_s, harm.block.end_s),
+            (block.start_s, block.end_s)
+        );
         assert!((harm.knot_a - 1.0).abs() < 0.05, "knot {}", harm.knot_a);
         // 1 A's share of the added squared error: (31² − 1²) n₁ against (11² − 1²) n₀.
         let (n1, n0) = (0..d.len())
@@ -2877,7 +2882,7 @@ mod tests {
         );
         let fitting = (0..d.len()).filter(|&j| d.train[j] && at(j, 1.0)).count();
         assert_eq!(harm.fitting_samples_at_knot, fitting);
-        assert!(harm.rmse_after_n > harm.rmse_before_n);
+        assert!(harm.block.rmse_after_n > harm.block.rmse_before_n);
     }
 
     /// Every candidate's statistic against the current model's optimum (in the optimum's
